@@ -1,0 +1,6 @@
+//! Host side of the parking brake monitor: the f64 reference twin, trace files, fleet data,
+//! replay, training and reports. Everything per-sample runs through the `pbm` core.
+#![deny(missing_docs)]
+
+pub mod reference;
+pub mod simulate;

@@ -1,0 +1,84 @@
+//! `host-sim`: command-line front end of the host tools.
+
+use anyhow::{bail, Context, Result};
+use clap::{Parser, Subcommand};
+use host_sim::simulate::{simulate, write_csv, Engine};
+use pbm::TwinParams;
+use std::io::Write;
+use std::path::PathBuf;
+
+#[derive(Parser)]
+#[command(name = "host-sim", version, about = "Host tools for the spring parking brake monitor")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Simulate one release (noise-free) and write its trace as CSV (t_s,p_bar,x_mm).
+    Simulate(SimulateArgs),
+}
+
+#[derive(clap::Args)]
+struct SimulateArgs {
+    /// Twin implementation: the fixed-point core or the f64 reference.
+    #[arg(long, value_enum, default_value_t = Engine::Fixed)]
+    engine: Engine,
+    /// Release orifice diameter, mm.
+    #[arg(long, default_value_t = TwinParams::NOMINAL_ORIFICE_MM)]
+    orifice_mm: f64,
+    /// Leak orifice diameter to atmosphere, mm (0 = none).
+    #[arg(long, default_value_t = 0.0)]
+    leak_mm: f64,
+    /// Supply pressure, bar g.
+    #[arg(long, default_value_t = TwinParams::NOMINAL_SUPPLY_BAR_G)]
+    supply_bar: f64,
+    /// Duration, s.
+    #[arg(long, default_value_t = 60.0)]
+    duration: f64,
+    /// Output file (default: standard output).
+    #[arg(long)]
+    out: Option<PathBuf>,
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Simulate(args) => cmd_simulate(&args),
+    };
+    if let Err(e) = result {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn cmd_simulate(a: &SimulateArgs) -> Result<()> {
+    if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 3600.0) {
+        bail!("--duration must be in (0, 3600] s, got {}", a.duration);
+    }
+    let params =
+        TwinParams::nominal().with_orifice_mm(a.orifice_mm).with_leak_mm(a.leak_mm).with_supply_bar_g(a.supply_bar);
+    let trace = simulate(a.engine, &params, a.duration).map_err(|e| anyhow::anyhow!("invalid parameters: {e}"))?;
+    let meta = [
+        ("source", format!("host-sim simulate --engine {:?}", a.engine).to_lowercase()),
+        ("orifice_mm", a.orifice_mm.to_string()),
+        ("leak_mm", a.leak_mm.to_string()),
+        ("supply_bar", a.supply_bar.to_string()),
+    ];
+    match &a.out {
+        Some(path) => {
+            let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+            let mut w = std::io::BufWriter::new(f);
+            write_csv(&mut w, &trace, &meta)?;
+            w.flush()?;
+        }
+        None => {
+            let stdout = std::io::stdout();
+            let mut w = std::io::BufWriter::new(stdout.lock());
+            write_csv(&mut w, &trace, &meta)?;
+            w.flush()?;
+        }
+    }
+    Ok(())
+}

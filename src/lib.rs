@@ -1,0 +1,30 @@
+//! Spring parking brake monitor: the `no_std` core shared by the firmware and the host tools.
+//!
+//! No allocator, no HAL: time advances one ADC sample per call and every input comes in as an
+//! argument, so the same code runs on the brake controller (Cortex-M4F), on x86 and in tests.
+//!
+//! - [`units`]: unit newtypes and the Q7.24 pressure type.
+//! - [`params`]: physical parameters (SPEC §3) and constants (SPEC §2).
+//! - [`twin`]: the fixed-point digital twin of the release.
+//! - [`sensor`]: the pressure transducer and ADC map (SPEC §5).
+//! - [`fault`]: fault classes (SPEC §4).
+//! - [`metrics`]: NMSE (SPEC §6).
+#![cfg_attr(not(feature = "std"), no_std)]
+#![deny(missing_docs)]
+#![forbid(unsafe_code)]
+// Fixed-point code reads `a * b >> s` as "form the product, then drop s fractional bits"
+// everywhere; parenthesising every such product only adds noise.
+#![allow(clippy::precedence)]
+
+pub mod fault;
+pub mod fixed;
+pub mod metrics;
+pub mod params;
+pub mod sensor;
+pub mod twin;
+pub mod units;
+
+pub use fault::FaultClass;
+pub use params::{ParamError, TwinParams};
+pub use twin::{Twin, TwinSample};
+pub use units::{AdcCounts, BarG, Meters, PressureQ24, Seconds};

@@ -1,0 +1,103 @@
+//! The chamber pressure transducer and its 12-bit ADC (SPEC §5).
+//!
+//! 0–10 bar g ratiometric transducer, 0.5–4.5 V, into a 12-bit ADC referenced to 5 V:
+//! `counts = round(4095 · (0.1 + 0.08 · p))`. Readings below 0.25 V or above 4.75 V equivalent
+//! are an open or shorted sensor, never a brake fault.
+
+use crate::units::{AdcCounts, BarG, PressureQ24};
+
+/// Full-scale ADC code.
+pub const ADC_FULL_SCALE: u16 = 4095;
+/// Lowest valid code: 0.25 V of 5 V (204.75 counts) rounds up to 205.
+pub const ADC_MIN_VALID: u16 = 205;
+/// Highest valid code: 4.75 V of 5 V (3890.25 counts) rounds down to 3890.
+pub const ADC_MAX_VALID: u16 = 3890;
+/// Counts per bar: 4095 · 0.08.
+pub const COUNTS_PER_BAR: f64 = 4095.0 * 0.08;
+/// Counts at 0 bar g: 4095 · 0.1.
+pub const COUNTS_AT_ZERO: f64 = 4095.0 * 0.1;
+
+/// Why an ADC reading is not a pressure.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum SensorFault {
+    /// Below 0.25 V equivalent: open circuit or broken supply.
+    OpenCircuit,
+    /// Above 4.75 V equivalent: short to supply.
+    ShortCircuit,
+}
+
+impl core::fmt::Display for SensorFault {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        f.write_str(match self {
+            Self::OpenCircuit => "sensor open circuit (ADC below 0.25 V)",
+            Self::ShortCircuit => "sensor short circuit (ADC above 4.75 V)",
+        })
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for SensorFault {}
+
+/// Ideal ADC code for a gauge pressure, without noise (host-side sensor model).
+pub fn adc_from_bar(p: BarG) -> AdcCounts {
+    let c = libm::round(ADC_FULL_SCALE as f64 * (0.1 + 0.08 * p.0));
+    AdcCounts(if c.is_nan() { 0 } else { c.clamp(0.0, ADC_FULL_SCALE as f64) as u16 })
+}
+
+/// Gauge pressure of an ADC code as a float (for reports; the monitor uses [`pressure_from_adc`]).
+pub fn bar_from_adc(c: AdcCounts) -> BarG {
+    BarG((f64::from(c.0) - COUNTS_AT_ZERO) / COUNTS_PER_BAR)
+}
+
+/// Multiplier turning half-counts above 409.5 into Q24 bar after a 17-bit shift.
+const BAR_Q24_PER_HALF_COUNT_Q17: i64 = 3_356_262_600; // round(2^40 / 327.6)
+
+/// Converts an ADC reading to absolute chamber pressure (Q7.24 bar), integer only.
+///
+/// Codes outside `ADC_MIN_VALID..=ADC_MAX_VALID` (including anything above 12 bits) are a
+/// sensor fault.
+pub fn pressure_from_adc(c: AdcCounts) -> Result<PressureQ24, SensorFault> {
+    if c.0 < ADC_MIN_VALID {
+        return Err(SensorFault::OpenCircuit);
+    }
+    if c.0 > ADC_MAX_VALID {
+        return Err(SensorFault::ShortCircuit);
+    }
+    // (2 counts − 819) / 2 = counts − 409.5, kept in half-counts to stay integer.
+    let half_counts = 2 * i64::from(c.0) - 819;
+    let gauge_q24 = (half_counts * BAR_Q24_PER_HALF_COUNT_Q17) >> 17;
+    Ok(PressureQ24((gauge_q24 + i64::from(PressureQ24::ONE_BAR)) as i32))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn adc_map_matches_spec() {
+        assert_eq!(adc_from_bar(BarG(0.0)).0, 410); // 409.5 rounds away from zero
+        assert_eq!(adc_from_bar(BarG(10.0)).0, 3686);
+        assert_eq!(adc_from_bar(BarG(-5.0)).0, 0);
+        assert_eq!(adc_from_bar(BarG(50.0)).0, 4095);
+        assert_eq!(adc_from_bar(BarG(f64::NAN)).0, 0);
+    }
+
+    #[test]
+    fn integer_conversion_matches_float() {
+        for c in ADC_MIN_VALID..=ADC_MAX_VALID {
+            let q = pressure_from_adc(AdcCounts(c)).unwrap().to_bar_g().0;
+            let f = bar_from_adc(AdcCounts(c)).0;
+            assert!((q - f).abs() < 1e-6, "{c}: {q} vs {f}");
+        }
+    }
+
+    #[test]
+    fn sensor_faults() {
+        assert_eq!(pressure_from_adc(AdcCounts(0)), Err(SensorFault::OpenCircuit));
+        assert_eq!(pressure_from_adc(AdcCounts(204)), Err(SensorFault::OpenCircuit));
+        assert!(pressure_from_adc(AdcCounts(205)).is_ok());
+        assert!(pressure_from_adc(AdcCounts(3890)).is_ok());
+        assert_eq!(pressure_from_adc(AdcCounts(3891)), Err(SensorFault::ShortCircuit));
+        assert_eq!(pressure_from_adc(AdcCounts(u16::MAX)), Err(SensorFault::ShortCircuit));
+    }
+}

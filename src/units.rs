@@ -1,0 +1,70 @@
+//! Unit newtypes used at every interface of the core.
+//!
+//! Inside the twin pressures are absolute; everything that crosses an interface (traces, CAN,
+//! CLI) is gauge pressure in bar, as a brake engineer reads it off a gauge.
+
+/// Atmospheric pressure used by the model, in bar absolute (SPEC §2: P0 = 1.000e5 Pa).
+pub const ATMOSPHERE_BAR_ABS: f64 = 1.0;
+
+/// Gauge pressure in bar (bar g): 0 at atmosphere.
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Default)]
+pub struct BarG(pub f64);
+
+impl BarG {
+    /// Absolute pressure in bar.
+    pub fn to_abs_bar(self) -> f64 {
+        self.0 + ATMOSPHERE_BAR_ABS
+    }
+    /// Absolute pressure in pascal.
+    pub fn to_abs_pa(self) -> f64 {
+        self.to_abs_bar() * 1e5
+    }
+}
+
+/// Time in seconds.
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Default)]
+pub struct Seconds(pub f64);
+
+/// Raw 12-bit ADC reading of the chamber pressure transducer (0..=4095 when valid).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct AdcCounts(pub u16);
+
+/// Length in metres (orifice diameters, piston travel).
+#[derive(Debug, Clone, Copy, PartialEq, PartialOrd, Default)]
+pub struct Meters(pub f64);
+
+impl Meters {
+    /// From millimetres.
+    pub fn from_mm(mm: f64) -> Self {
+        Self(mm * 1e-3)
+    }
+    /// In millimetres.
+    pub fn mm(self) -> f64 {
+        self.0 * 1e3
+    }
+}
+
+/// Pressure in bar **absolute**, Q7.24 fixed point in an `i32` (1 LSB = 2^-24 bar ≈ 6e-3 Pa,
+/// range ±128 bar). This is the twin's internal pressure representation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct PressureQ24(pub i32);
+
+impl PressureQ24 {
+    /// Number of fractional bits.
+    pub const FRAC_BITS: u32 = 24;
+    /// One bar.
+    pub const ONE_BAR: i32 = 1 << 24;
+    /// Atmospheric pressure (1.000 bar abs).
+    pub const ATMOSPHERE: Self = Self(Self::ONE_BAR);
+
+    /// From a gauge pressure (host/init-time conversion; saturates to the Q7.24 range).
+    pub fn from_bar_g(p: BarG) -> Self {
+        let q = libm::round(p.to_abs_bar() * f64::from(Self::ONE_BAR));
+        // `as` saturates out-of-range floats and maps NaN to 0.
+        Self(q as i32)
+    }
+    /// To gauge pressure (for reports and traces).
+    pub fn to_bar_g(self) -> BarG {
+        BarG(f64::from(self.0) / f64::from(Self::ONE_BAR) - ATMOSPHERE_BAR_ABS)
+    }
+}
