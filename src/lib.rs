@@ -9,6 +9,8 @@
 //! - [`sensor`]: the pressure transducer and ADC map (SPEC §5).
 //! - [`fault`]: fault classes (SPEC §4).
 //! - [`metrics`]: NMSE (SPEC §6).
+//! - [`monitor`]: the per-sample pipeline (ADC in, reports out).
+//! - [`report`]: fault and status reports, independent of the CAN layout.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
@@ -19,7 +21,9 @@
 pub mod fault;
 pub mod fixed;
 pub mod metrics;
+pub mod monitor;
 pub mod params;
+pub mod report;
 pub mod sensor;
 pub mod twin;
 pub mod units;

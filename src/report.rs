@@ -1,0 +1,71 @@
+//! What the monitor tells the cab: plain data, independent of the CAN bit layout (see `can`).
+
+use crate::fault::FaultClass;
+use crate::sensor::SensorFault;
+
+/// Why the monitor declines to name a fault class.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum NoDiagnosis {
+    /// The pressure sensor reads out of range (open or short circuit).
+    SensorFault(SensorFault),
+    /// The release ended before enough of it was seen.
+    TooShort,
+    /// The inputs are unlike any brake the classifier knows (implausible features).
+    Implausible,
+}
+
+/// The monitor's verdict on one release.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Verdict {
+    /// A fault class with the classifier's confidence (0..=255 ↔ 0..=100 %).
+    Class {
+        /// Named class.
+        class: FaultClass,
+        /// Confidence, 255 = certain.
+        confidence: u8,
+    },
+    /// No class can be named, with the reason.
+    CannotDiagnose(NoDiagnosis),
+}
+
+/// Fault report for one release, sent when a diagnosis is made or updated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct FaultReport {
+    /// The verdict.
+    pub verdict: Verdict,
+    /// Time since the release command, 10 ms units.
+    pub time_since_release_cs: u16,
+    /// Estimated supply pressure, mbar g (0 when not estimated yet).
+    pub supply_mbar: u16,
+    /// Estimated leak, as equivalent orifice diameter in µm (0 = tight or not estimated).
+    pub leak_um: u16,
+    /// The release has completed (piston at its end stop, pressure settled).
+    pub release_completed: bool,
+}
+
+/// State of the online estimator, as reported in the status frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+#[repr(u8)]
+pub enum EstimatorState {
+    /// No release in progress.
+    Idle = 0,
+    /// Collecting data; estimates not yet settled.
+    Converging = 1,
+    /// Estimates settled.
+    Settled = 2,
+    /// Covariance guard active (no excitation).
+    Frozen = 3,
+}
+
+/// Periodic status/heartbeat of the monitor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct StatusReport {
+    /// Sensor health: `None` when the last reading was valid.
+    pub sensor_fault: Option<SensorFault>,
+    /// Estimator state.
+    pub estimator: EstimatorState,
+    /// Last measured chamber pressure, mbar g (saturated to 0..=65535).
+    pub pressure_mbar: u16,
+    /// Firmware version (major, minor).
+    pub version: (u8, u8),
+}
