@@ -51,6 +51,7 @@ pub struct ReferenceTwin {
     params: TwinParams,
     area_in: f64,
     area_leak: f64,
+    step_s: f64,
     /// Current state.
     pub state: ReferenceState,
 }
@@ -63,15 +64,23 @@ impl ReferenceTwin {
             params: *params,
             area_in: circle_area(params.orifice),
             area_leak: circle_area(params.leak),
+            step_s: REFERENCE_STEP_S,
             state: ReferenceState { p: P0, x: 0.0, v: 0.0, z: 0.0 },
         })
     }
 
+    /// The same twin with another integration step (seconds, clamped to 1 µs..=1 ms); a coarser
+    /// step trades accuracy for speed when generating large data sets.
+    pub fn with_step(mut self, step_s: f64) -> Self {
+        self.step_s = if step_s.is_finite() { step_s.clamp(1e-6, 1e-3) } else { REFERENCE_STEP_S };
+        self
+    }
+
     /// Advances `duration` seconds with the valve open (release) or closed (vent).
     pub fn advance(&mut self, duration: f64, valve_open: bool) {
-        let n = (duration / REFERENCE_STEP_S).round() as u64;
+        let n = (duration / self.step_s).round() as u64;
         for _ in 0..n {
-            self.step(REFERENCE_STEP_S, valve_open);
+            self.step(self.step_s, valve_open);
         }
     }
 
