@@ -10,8 +10,9 @@ use std::path::PathBuf;
 const KAPPA: f64 = 1.4;
 /// Critical pressure ratio (SPEC §2).
 const P_CR: f64 = 0.528;
-/// Q16 position of the critical ratio: first grid point of the unchoked table.
-const FLOW_R0_Q16: u32 = 34_603; // round(0.528 * 65536)
+/// First grid point of the unchoked table, Q16 pressure ratio.
+/// 65536 − 967·32: the grid ends exactly at r = 1 and starts just below P_cr (0.52783).
+const FLOW_R0_Q16: u32 = 34_592;
 /// Grid step of the flow table in Q16 pressure-ratio units (1/2048 of the ratio).
 const FLOW_STEP_Q16: u32 = 32;
 /// Grid step of the Stribeck table: u = |v|/vs in Q16, step 1/64.

@@ -11,6 +11,7 @@
 //! - [`metrics`]: NMSE (SPEC §6).
 //! - [`monitor`]: the per-sample pipeline (ADC in, reports out).
 //! - [`report`]: fault and status reports, independent of the CAN layout.
+//! - [`can`]: CAN frames to the cab display (DBC layout, E2E, encoder, decoder, schedule).
 #![cfg_attr(not(feature = "std"), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
@@ -18,7 +19,9 @@
 // everywhere; parenthesising every such product only adds noise.
 #![allow(clippy::precedence)]
 
+pub mod can;
 pub mod fault;
+pub mod features;
 pub mod fixed;
 pub mod metrics;
 pub mod monitor;

@@ -2,5 +2,9 @@
 //! replay, training and reports. Everything per-sample runs through the `pbm` core.
 #![deny(missing_docs)]
 
+pub mod bench;
+pub mod dataset;
+pub mod generate;
 pub mod reference;
 pub mod simulate;
+pub mod trace;

@@ -18,6 +18,10 @@ struct Cli {
 enum Command {
     /// Simulate one release (noise-free) and write its trace as CSV (t_s,p_bar,x_mm).
     Simulate(SimulateArgs),
+    /// Generate a synthetic fleet data set (SPEC §7 layout, ADC traces, manifest, truth).
+    Generate(host_sim::generate::GenerateArgs),
+    /// Print throughput figures (twin, monitor pipeline, generate) and write bench/host.md.
+    Bench(host_sim::bench::BenchArgs),
 }
 
 #[derive(clap::Args)]
@@ -46,6 +50,8 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Simulate(args) => cmd_simulate(&args),
+        Command::Generate(args) => host_sim::generate::run(&args),
+        Command::Bench(args) => host_sim::bench::run(&args),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

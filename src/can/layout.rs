@@ -1,0 +1,245 @@
+//! The bit layout of the monitor's CAN frames: the one copy in code of what
+//! `can/brake_monitor.dbc` says. `tests/can_dbc.rs` parses the DBC and checks every message
+//! and signal here against it (id, length, start bit, size, byte order, sign, factor, offset,
+//! range, value tables), so the two cannot drift apart silently.
+//!
+//! All signals are unsigned and Intel (little-endian, DBC `@1+`): the 8 data bytes are read as
+//! one little-endian `u64` and a signal occupies bits `start_bit .. start_bit + len` of it.
+
+use embedded_can::ExtendedId;
+
+/// One signal of a message, as declared in the DBC.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Signal {
+    /// DBC signal name.
+    pub name: &'static str,
+    /// Start bit (LSB) in Intel numbering: bit `i` is bit `i % 8` of byte `i / 8`.
+    pub start_bit: u8,
+    /// Length in bits (1..=16 here).
+    pub len: u8,
+    /// Physical value = raw · factor + offset.
+    pub factor: f64,
+    /// Physical value = raw · factor + offset.
+    pub offset: f64,
+    /// Smallest physical value (DBC `[min|max]`).
+    pub min: f64,
+    /// Largest physical value (DBC `[min|max]`).
+    pub max: f64,
+    /// Unit string of the DBC.
+    pub unit: &'static str,
+}
+
+impl Signal {
+    /// Largest raw value the signal can carry.
+    pub const fn max_raw(&self) -> u64 {
+        (1u64 << self.len) - 1
+    }
+
+    /// Raw value of the signal in a payload read as a little-endian `u64`.
+    pub const fn get(&self, payload: u64) -> u64 {
+        (payload >> self.start_bit) & self.max_raw()
+    }
+
+    /// Writes a raw value into a payload, saturating it to the signal's width.
+    pub fn put(&self, payload: &mut u64, raw: u64) {
+        let raw = if raw > self.max_raw() { self.max_raw() } else { raw };
+        *payload &= !(self.max_raw() << self.start_bit);
+        *payload |= raw << self.start_bit;
+    }
+
+    /// Bit mask of the signal within the payload.
+    pub const fn mask(&self) -> u64 {
+        self.max_raw() << self.start_bit
+    }
+}
+
+/// One message (frame) of the DBC.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Message {
+    /// DBC message name.
+    pub name: &'static str,
+    /// 29-bit extended CAN identifier (the DBC writes it with bit 31 set).
+    pub id: ExtendedId,
+    /// Data length in bytes.
+    pub dlc: u8,
+    /// E2E data ID mixed into the CRC (not transmitted), so a frame under the wrong
+    /// identifier fails its CRC.
+    pub data_id: u16,
+    /// Nominal cycle time in ms (DBC attribute `GenMsgCycleTime`).
+    pub cycle_ms: u16,
+    /// Every signal of the message; bits not covered are reserved and sent as 0.
+    pub signals: &'static [Signal],
+}
+
+impl Message {
+    /// The raw 29-bit identifier.
+    pub fn raw_id(&self) -> u32 {
+        self.id.as_raw()
+    }
+
+    /// Mask of the bits that no signal covers (reserved, always 0).
+    pub fn reserved_mask(&self) -> u64 {
+        let used = self.signals.iter().fold(0u64, |m, s| m | s.mask());
+        let all = if self.dlc >= 8 { u64::MAX } else { (1u64 << (8 * u32::from(self.dlc))) - 1 };
+        all & !used
+    }
+}
+
+/// An extended identifier checked at compile time (used in `const` items only, where an id
+/// above 29 bits fails the build instead of panicking at run time).
+const fn ext(id: u32) -> ExtendedId {
+    match ExtendedId::new(id) {
+        Some(x) => x,
+        None => panic!("CAN id above 29 bits"),
+    }
+}
+
+const fn sig(name: &'static str, start_bit: u8, len: u8, factor: f64, max: f64, unit: &'static str) -> Signal {
+    Signal { name, start_bit, len, factor, offset: 0.0, min: 0.0, max, unit }
+}
+
+// ---- Fault report ------------------------------------------------------------------------
+
+/// E2E CRC-8 (SAE J1850) over the data ID and bytes 1..8 of the fault report.
+pub const FAULT_CRC: Signal = sig("FaultCrc", 0, 8, 1.0, 255.0, "");
+/// E2E rolling counter of the fault report (0..=15, wraps).
+pub const FAULT_COUNTER: Signal = sig("FaultCounter", 8, 4, 1.0, 15.0, "");
+/// Diagnosis: `FaultClass as u8` (0..=5) or [`DIAGNOSIS_CANNOT_DIAGNOSE`].
+pub const DIAGNOSIS: Signal = sig("Diagnosis", 12, 4, 1.0, 15.0, "");
+/// Classifier confidence, raw 0..=255 ↔ 0..=100 %.
+pub const CONFIDENCE: Signal = sig("Confidence", 16, 8, CONFIDENCE_PERCENT_PER_LSB, 100.0, "%");
+/// Why no class is named ([`reason`] codes; 0 when a class is named).
+pub const NO_DIAGNOSIS_REASON: Signal = sig("NoDiagnosisReason", 24, 3, 1.0, 7.0, "");
+/// Release completed (piston at its end stop, pressure settled).
+pub const RELEASE_COMPLETED: Signal = sig("ReleaseCompleted", 27, 1, 1.0, 1.0, "");
+/// Time since the release command, 0.1 s per LSB (saturates at 409.5 s).
+pub const TIME_SINCE_RELEASE: Signal = sig("TimeSinceRelease", 28, 12, 0.1, 409.5, "s");
+/// Estimated supply pressure, 5 mbar per LSB (0 = not estimated; saturates at 20.475 bar g).
+pub const SUPPLY_PRESSURE: Signal = sig("SupplyPressure", 40, 12, 0.005, 20.475, "bar");
+/// Estimated leak as an equivalent orifice diameter, 1 µm per LSB (saturates at 4.095 mm).
+pub const LEAK_DIAMETER: Signal = sig("LeakDiameter", 52, 12, 0.001, 4.095, "mm");
+
+/// Raw value of [`DIAGNOSIS`] meaning "cannot diagnose" (the reason is in [`NO_DIAGNOSIS_REASON`]).
+pub const DIAGNOSIS_CANNOT_DIAGNOSE: u8 = 15;
+/// Percent per raw LSB of [`CONFIDENCE`]: 100/255.
+pub const CONFIDENCE_PERCENT_PER_LSB: f64 = 100.0 / 255.0;
+/// Report time units (10 ms) per raw LSB of [`TIME_SINCE_RELEASE`].
+pub const TIME_CS_PER_LSB: u16 = 10;
+/// Millibar per raw LSB of [`SUPPLY_PRESSURE`].
+pub const SUPPLY_MBAR_PER_LSB: u16 = 5;
+/// Micrometres per raw LSB of [`LEAK_DIAMETER`].
+pub const LEAK_UM_PER_LSB: u16 = 1;
+
+/// Codes of [`NO_DIAGNOSIS_REASON`].
+pub mod reason {
+    /// A class is named (no reason).
+    pub const NONE: u8 = 0;
+    /// Pressure sensor open circuit.
+    pub const SENSOR_OPEN_CIRCUIT: u8 = 1;
+    /// Pressure sensor short circuit.
+    pub const SENSOR_SHORT_CIRCUIT: u8 = 2;
+    /// The release ended before enough of it was seen.
+    pub const TOO_SHORT: u8 = 3;
+    /// Inputs unlike any known brake.
+    pub const IMPLAUSIBLE: u8 = 4;
+    /// Labels as in the DBC `VAL_` table, indexed by code.
+    pub const LABELS: [&str; 5] =
+        ["none", "sensor_open_circuit", "sensor_short_circuit", "too_short", "implausible"];
+}
+
+/// The fault report frame.
+pub const FAULT_REPORT: Message = Message {
+    name: "BPM_FaultReport",
+    id: ext(0x18FF_5080),
+    dlc: 8,
+    data_id: 0xFF50,
+    cycle_ms: 1000,
+    signals: &[
+        FAULT_CRC,
+        FAULT_COUNTER,
+        DIAGNOSIS,
+        CONFIDENCE,
+        NO_DIAGNOSIS_REASON,
+        RELEASE_COMPLETED,
+        TIME_SINCE_RELEASE,
+        SUPPLY_PRESSURE,
+        LEAK_DIAMETER,
+    ],
+};
+
+// ---- Status / heartbeat ------------------------------------------------------------------
+
+/// E2E CRC-8 (SAE J1850) over the data ID and bytes 1..8 of the status frame.
+pub const STATUS_CRC: Signal = sig("StatusCrc", 0, 8, 1.0, 255.0, "");
+/// E2E rolling counter of the status frame (0..=15, wraps).
+pub const STATUS_COUNTER: Signal = sig("StatusCounter", 8, 4, 1.0, 15.0, "");
+/// Sensor health ([`sensor_health`] codes).
+pub const SENSOR_HEALTH: Signal = sig("SensorHealth", 12, 2, 1.0, 3.0, "");
+/// Estimator state: `EstimatorState as u8`.
+pub const ESTIMATOR_STATE: Signal = sig("EstimatorState", 14, 2, 1.0, 3.0, "");
+/// Last measured chamber pressure, 1 mbar per LSB.
+pub const CHAMBER_PRESSURE: Signal = sig("ChamberPressure", 16, 16, 0.001, 65.535, "bar");
+/// Firmware major version.
+pub const FIRMWARE_MAJOR: Signal = sig("FirmwareMajor", 32, 8, 1.0, 255.0, "");
+/// Firmware minor version.
+pub const FIRMWARE_MINOR: Signal = sig("FirmwareMinor", 40, 8, 1.0, 255.0, "");
+
+/// Codes of [`SENSOR_HEALTH`].
+pub mod sensor_health {
+    /// Last reading valid.
+    pub const OK: u8 = 0;
+    /// Open circuit.
+    pub const OPEN_CIRCUIT: u8 = 1;
+    /// Short circuit.
+    pub const SHORT_CIRCUIT: u8 = 2;
+    /// Labels as in the DBC `VAL_` table, indexed by code.
+    pub const LABELS: [&str; 3] = ["ok", "open_circuit", "short_circuit"];
+}
+
+/// Labels of [`ESTIMATOR_STATE`] as in the DBC `VAL_` table, indexed by `EstimatorState as u8`.
+pub const ESTIMATOR_STATE_LABELS: [&str; 4] = ["idle", "converging", "settled", "frozen"];
+
+/// The status/heartbeat frame.
+pub const STATUS: Message = Message {
+    name: "BPM_Status",
+    id: ext(0x18FF_5180),
+    dlc: 8,
+    data_id: 0xFF51,
+    cycle_ms: 1000,
+    signals: &[STATUS_CRC, STATUS_COUNTER, SENSOR_HEALTH, ESTIMATOR_STATE, CHAMBER_PRESSURE, FIRMWARE_MAJOR, FIRMWARE_MINOR],
+};
+
+/// Every message the monitor transmits. Nothing else is ever sent.
+pub const MESSAGES: [Message; 2] = [FAULT_REPORT, STATUS];
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn signals_do_not_overlap_and_fit_the_frame() {
+        for m in MESSAGES {
+            let mut used = 0u64;
+            for s in m.signals {
+                assert!(s.len >= 1 && u32::from(s.start_bit) + u32::from(s.len) <= 8 * u32::from(m.dlc), "{}", s.name);
+                assert_eq!(used & s.mask(), 0, "{} overlaps", s.name);
+                used |= s.mask();
+            }
+            assert_eq!(m.signals[0].start_bit, 0, "CRC in byte 0");
+            assert_eq!(m.signals[0].len, 8);
+            assert_eq!(m.signals[1].start_bit, 8, "counter in the low nibble of byte 1");
+        }
+        assert_eq!(FAULT_REPORT.reserved_mask(), 0);
+        assert_eq!(STATUS.reserved_mask(), 0xFFFF << 48);
+    }
+
+    #[test]
+    fn put_get_saturate() {
+        let mut p = u64::MAX;
+        TIME_SINCE_RELEASE.put(&mut p, 5000);
+        assert_eq!(TIME_SINCE_RELEASE.get(p), 4095);
+        TIME_SINCE_RELEASE.put(&mut p, 7);
+        assert_eq!(TIME_SINCE_RELEASE.get(p), 7);
+        assert_eq!(p | TIME_SINCE_RELEASE.mask(), u64::MAX, "neighbours untouched");
+    }
+}

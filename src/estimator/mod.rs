@@ -1,0 +1,504 @@
+//! Online estimation of the brake's physical parameters from the chamber pressure alone.
+//!
+//! The controller knows the valve command and measures one pressure; piston travel is not
+//! measured. [`ReleaseEstimator`] runs, sample by sample, phase-aware recursive least squares
+//! ([`rls::Rls`], exponential forgetting and a covariance windup guard) on regression models
+//! derived from SPEC §2, and turns the parameters into the quantities a brake engineer and the
+//! fault report use: supply pressure, equivalent inlet orifice, equivalent leak.
+//!
+//! # Signal path
+//!
+//! Samples (Q7.24 bar abs) are summed in blocks of [`BLOCK_SAMPLES`] = 10 (0.1 s). The rate of a
+//! block pair is `(Σₖ − Σₖ₋₁) · 2⁻²⁴` bar/s (exact: the 1/10 of the mean and the 1/0.1 s of the
+//! rate cancel), taken at the pair's mean pressure. Averaging cuts the 0.01 bar sensor noise to
+//! ≈ 0.045 bar/s on the rate, removes the need for a differentiating filter, and runs the
+//! regression once per 10 samples. A sample that is a sensor fault discards its block and the
+//! link to the previous one, so no rate spans a gap.
+//!
+//! # Regressors and why each parameter is identifiable
+//!
+//! At rest (piston against its applied stop, `V = V0`) the chamber obeys, in bar and seconds,
+//!
+//! ```text
+//! dp/dt = g_in · Ps · φ(p/Ps) − g_leak · ψ(p),   g = k R T Cf A C1 / (√T · V0)  per orifice
+//! ```
+//!
+//! with φ the normalised orifice flow (1 when choked, 0 at r = 1) and `ψ(p) = p · φ(P0/p)` the
+//! leak shape, a known function of the measured pressure.
+//!
+//! 1. **Choked fill** ([`model::ChokedFillModel`]): while `p ≤ 0.528 · Ps` the inlet is choked and
+//!    `φ(p/Ps) = 1`, so `dp/dt = a − g_leak · ψ(p)` with φ = `[1, −ψ(p)]`, θ = `[a, g_leak]`:
+//!    * `a = g_in · Ps` (bar/s) is the rate at which the chamber fills with the leak closed —
+//!      the product of inlet conductance (Cf·A of the orifice over V0) and supply pressure. It is
+//!      the intercept, identifiable from any stretch of the fill.
+//!    * `g_leak` (1/s) is the leak conductance. Identifiable because ψ(p) varies along the fill
+//!      (from 0 at atmosphere to ≈ 4.6 bar at the end of the choked window), so the slope of
+//!      `dp/dt` against ψ separates it from `a`; without a leak the slope is 0.
+//!
+//!    The phase ends when the inlet leaves choke or the piston breaks away: both make `dp/dt`
+//!    fall below the model. A one-sided CUSUM of the normalised a-priori innovation detects it;
+//!    regressions are fed to the RLS [`FILL_DELAY_BLOCKS`] blocks late, so the blocks between the
+//!    change and its detection are dropped rather than learnt. A fill that never leaves choke
+//!    (large leak with a blocked orifice: the pressure settles below 0.528 · Ps) keeps the model
+//!    valid to the end.
+//! 2. **Plateau** ([`model::PlateauModel`]): once the 1 s mean pressure changes by less than
+//!    `plateau_tolerance_bar` per second, the block pressures feed a one-parameter RLS whose θ is
+//!    the plateau `P∞` (an exponentially weighted mean). At the plateau inflow equals leak:
+//!    `a · φ(P∞/Ps) = g_leak · ψ(P∞)`. With `a` and `g_leak` from phase 1 this gives
+//!    `φ(P∞/Ps)`, which [`model::inverse_flow_shape`] inverts to `r = P∞/Ps`, hence **Ps**.
+//!    Without a leak `r = 1` and `Ps = P∞` exactly. The volume (piston position) does not enter
+//!    an equilibrium, which is why the plateau, not the stroke, carries the supply. If the fill
+//!    never left choke, the plateau is a choked equilibrium `a = g_leak · ψ(P∞)` that does not
+//!    depend on Ps: the supply is then reported as not identifiable (`None`).
+//! 3. **Derived**: `g_in = a / Ps`; equivalent orifice and leak diameters
+//!    `d = √(4 g V0 √T / (π k R T Cf C1))` with the nominal Cf and V0 (the per-locomotive
+//!    ±5 % spread of Cf and V0 is not separable from the orifice area by any pressure-only
+//!    method: only the product Cf·A/V0 enters the equations). Until a plateau gives Ps, the
+//!    orifice uses the nominal supply.
+//!
+//! The stroke phase (breakaway pressure, spring rate from the pressure rise between breakaway
+//! and the end stop) is not estimated yet: the fault classes of SPEC §4 do not change it.
+//!
+//! # Why `f32`
+//!
+//! The Cortex-M4F has a single-precision FPU: `VADD`/`VMUL` take 1 cycle, `VDIV`/`VSQRT` 14, and
+//! no Q-format bookkeeping is needed for a covariance that spans 1e-6..1e4. A fixed-point RLS of
+//! the same accuracy needs 64-bit products and per-entry scaling (several times the cycles on
+//! the M4) and risks overflow exactly where the windup guard matters. f32's 24-bit mantissa
+//! (6e-8 relative) is far below the 1e-3 the estimates need. The regression runs once per
+//! 10 samples, so per-sample cost is one 64-bit add. Determinism: only correctly rounded IEEE
+//! `+ − × ÷`, `libm::sqrtf` and integer tables are used (no FMA contraction in Rust), so the host
+//! and the target produce identical bits and identical CAN frames.
+
+pub mod model;
+pub mod rls;
+
+pub use model::{BlockObservation, ChokedFillModel, PlateauModel, Regression, RegressionModel};
+pub use rls::{Rls, RlsConfig, RlsError};
+
+use crate::params::{c1, circle_area, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
+use crate::report::EstimatorState;
+use crate::units::{Meters, PressureQ24};
+use crate::TwinParams;
+
+/// Samples per regression block (0.1 s at 100 Hz).
+pub const BLOCK_SAMPLES: u8 = 10;
+/// Blocks per plateau-detection window (1 s).
+pub const WINDOW_BLOCKS: u8 = 10;
+/// Delay (blocks) between a fill regression and its use by the RLS.
+pub const FILL_DELAY_BLOCKS: usize = 4;
+
+/// Tuning of the release estimator.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EstimatorConfig {
+    /// RLS of the choked-fill model.
+    pub fill_rls: RlsConfig,
+    /// RLS of the plateau level.
+    pub plateau_rls: RlsConfig,
+    /// Standard deviation of the block rate noise, bar/s (0.01 bar sensor noise → ≈ 0.045).
+    pub rate_noise_bar_s: f32,
+    /// CUSUM drift, in units of `rate_noise_bar_s`.
+    pub cusum_drift: f32,
+    /// CUSUM alarm threshold, in units of `rate_noise_bar_s`.
+    pub cusum_threshold: f32,
+    /// Fill blocks before the CUSUM is armed.
+    pub fill_warmup_blocks: u32,
+    /// Largest change of the 1 s mean pressure per second that counts as a plateau, bar.
+    pub plateau_tolerance_bar: f32,
+    /// Plateau blocks (and fill blocks) after which the estimates count as settled.
+    pub settle_blocks: u32,
+}
+
+impl Default for EstimatorConfig {
+    fn default() -> Self {
+        Self {
+            fill_rls: RlsConfig { forgetting: 0.999, initial_covariance: 100.0, trace_max: 1.0e4 },
+            plateau_rls: RlsConfig { forgetting: 0.98, initial_covariance: 100.0, trace_max: 1.0e4 },
+            rate_noise_bar_s: 0.05,
+            cusum_drift: 1.0,
+            cusum_threshold: 8.0,
+            fill_warmup_blocks: 5,
+            plateau_tolerance_bar: 0.005,
+            settle_blocks: 10,
+        }
+    }
+}
+
+/// Why the estimator could not be built or an update was not used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum EstimatorError {
+    /// An RLS refused its configuration or an update.
+    Rls(RlsError),
+    /// A configuration value out of range (noise or CUSUM settings not positive and finite).
+    Config,
+}
+
+impl From<RlsError> for EstimatorError {
+    fn from(e: RlsError) -> Self {
+        Self::Rls(e)
+    }
+}
+
+impl core::fmt::Display for EstimatorError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::Rls(e) => write!(f, "estimator: {e}"),
+            Self::Config => f.write_str("estimator configuration out of range"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for EstimatorError {}
+
+/// Phase of the release as the estimator sees it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Phase {
+    /// Valve closed: no release.
+    Idle,
+    /// Filling at rest with a choked inlet (model 1 active).
+    ChokedFill,
+    /// After the choked fill: unchoked fill, stroke or end stop, pressure still moving.
+    Transit,
+    /// Pressure settled (model 2 active).
+    Plateau,
+}
+
+/// Current estimates (`None`: not identifiable yet or at all, see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Estimates {
+    /// Choked inflow rate `a = g_in · Ps`, bar/s.
+    pub inflow_rate_bar_s: Option<f32>,
+    /// Leak conductance `g_leak`, 1/s.
+    pub leak_conductance_per_s: Option<f32>,
+    /// Equivalent leak orifice diameter, mm (nominal Cf and V0).
+    pub leak_mm: Option<f32>,
+    /// Equivalent inlet orifice diameter, mm (nominal Cf and V0; nominal supply until `supply_bar_g`).
+    pub orifice_mm: Option<f32>,
+    /// Plateau pressure, bar g.
+    pub plateau_bar_g: Option<f32>,
+    /// Supply pressure, bar g.
+    pub supply_bar_g: Option<f32>,
+    /// Phase of the release.
+    pub phase: Phase,
+    /// Estimator state for the status report.
+    pub state: EstimatorState,
+}
+
+impl Estimates {
+    /// Nothing estimated.
+    pub const NONE: Self = Self {
+        inflow_rate_bar_s: None,
+        leak_conductance_per_s: None,
+        leak_mm: None,
+        orifice_mm: None,
+        plateau_bar_g: None,
+        supply_bar_g: None,
+        phase: Phase::Idle,
+        state: EstimatorState::Idle,
+    };
+
+    /// Supply for the fault report, mbar g (0 = not estimated), saturated to `u16`.
+    pub fn supply_mbar(&self) -> u16 {
+        self.supply_bar_g.map_or(0, |p| (p * 1000.0 + 0.5).clamp(0.0, 65_535.0) as u16)
+    }
+
+    /// Leak for the fault report, equivalent diameter in µm (0 = tight or not estimated).
+    pub fn leak_um(&self) -> u16 {
+        self.leak_mm.map_or(0, |d| (d * 1000.0 + 0.5).clamp(0.0, 65_535.0) as u16)
+    }
+}
+
+/// The phase-aware online estimator of one brake (see the module docs).
+#[derive(Debug, Clone)]
+pub struct ReleaseEstimator {
+    config: EstimatorConfig,
+    /// d² (mm²) per unit conductance (1/s): `4 V0 √T / (π k R T Cf C1) · 1e6`.
+    mm2_per_conductance: f32,
+    nominal_supply_abs: f32,
+    fill: Rls<2>,
+    plateau: Rls<1>,
+    phase: Phase,
+    in_release: bool,
+    block_sum: i64,
+    block_len: u8,
+    prev_block_sum: Option<i64>,
+    fill_blocks: u32,
+    cusum: f32,
+    pending: [Regression<2>; FILL_DELAY_BLOCKS],
+    pending_len: usize,
+    window_sum: f32,
+    window_len: u8,
+    prev_window_mean: Option<f32>,
+    plateau_blocks: u32,
+    supply_abs: Option<f32>,
+    last_error: Option<EstimatorError>,
+}
+
+impl ReleaseEstimator {
+    /// An estimator for a brake of the given nominal design (geometry, Cf, V0, supply).
+    pub fn new(nominal: &TwinParams, config: EstimatorConfig) -> Result<Self, EstimatorError> {
+        let positive = |v: f32| v.is_finite() && v > 0.0;
+        if !(positive(config.rate_noise_bar_s)
+            && config.cusum_drift.is_finite()
+            && config.cusum_drift >= 0.0
+            && positive(config.cusum_threshold)
+            && positive(config.plateau_tolerance_bar))
+        {
+            return Err(EstimatorError::Config);
+        }
+        nominal.validate().map_err(|_| EstimatorError::Config)?;
+        let gain_per_m2 = KAPPA * GAS_CONSTANT * libm::sqrt(TEMPERATURE_K) * nominal.discharge_coeff * c1()
+            / nominal.dead_volume_m3;
+        // d² = 4 A / π with A = g / gain; in mm².
+        let mm2_per_conductance = (4.0 / (core::f64::consts::PI * gain_per_m2) * 1e6) as f32;
+        // Sanity: the nominal orifice maps back to itself (init-time only).
+        debug_assert!({
+            let g = gain_per_m2 * circle_area(nominal.orifice);
+            let d = libm::sqrt(g * f64::from(mm2_per_conductance));
+            (d - Meters::mm(nominal.orifice)).abs() < 1e-3
+        });
+        let pending = [Regression { phi: [0.0; 2], y: 0.0 }; FILL_DELAY_BLOCKS];
+        Ok(Self {
+            config,
+            mm2_per_conductance,
+            nominal_supply_abs: nominal.supply.to_abs_bar() as f32,
+            fill: Rls::new(config.fill_rls, [0.0; 2])?,
+            plateau: Rls::new(config.plateau_rls, [0.0])?,
+            phase: Phase::Idle,
+            in_release: false,
+            block_sum: 0,
+            block_len: 0,
+            prev_block_sum: None,
+            fill_blocks: 0,
+            cusum: 0.0,
+            pending,
+            pending_len: 0,
+            window_sum: 0.0,
+            window_len: 0,
+            prev_window_mean: None,
+            plateau_blocks: 0,
+            supply_abs: None,
+            last_error: None,
+        })
+    }
+
+    /// Forgets the current release: all models back to their initial state.
+    pub fn reset(&mut self) {
+        self.fill.reset();
+        self.plateau.reset();
+        self.phase = Phase::Idle;
+        self.in_release = false;
+        self.block_sum = 0;
+        self.block_len = 0;
+        self.prev_block_sum = None;
+        self.fill_blocks = 0;
+        self.cusum = 0.0;
+        self.pending_len = 0;
+        self.window_sum = 0.0;
+        self.window_len = 0;
+        self.prev_window_mean = None;
+        self.plateau_blocks = 0;
+        self.supply_abs = None;
+        self.last_error = None;
+    }
+
+    /// The choked-fill RLS (for tests and reports).
+    pub fn fill_rls(&self) -> &Rls<2> {
+        &self.fill
+    }
+
+    /// The plateau RLS (for tests and reports).
+    pub fn plateau_rls(&self) -> &Rls<1> {
+        &self.plateau
+    }
+
+    /// Current phase.
+    pub fn phase(&self) -> Phase {
+        self.phase
+    }
+
+    /// The last error an update reported since the release started (`None`: all clean).
+    pub fn last_error(&self) -> Option<EstimatorError> {
+        self.last_error
+    }
+
+    /// Processes one sample: `pressure` is the measured chamber pressure (`None` when the
+    /// reading is a sensor fault), `valve_open` the release command. A rising edge of the
+    /// command starts a new release and resets the estimator; while the valve is closed the
+    /// last estimates are kept for reporting.
+    ///
+    /// An `Err` means one regression was refused or corrected (see [`RlsError`]); the
+    /// estimator stays usable and the error is kept in [`Self::last_error`].
+    pub fn update(&mut self, pressure: Option<PressureQ24>, valve_open: bool) -> Result<(), EstimatorError> {
+        if !valve_open {
+            self.in_release = false;
+            self.phase = Phase::Idle;
+            return Ok(());
+        }
+        if !self.in_release {
+            self.reset();
+            self.in_release = true;
+            self.phase = Phase::ChokedFill;
+        }
+        let Some(p) = pressure else {
+            // A gap: drop the partial block and do not form a rate across it.
+            self.block_sum = 0;
+            self.block_len = 0;
+            self.prev_block_sum = None;
+            return Ok(());
+        };
+        self.block_sum += i64::from(p.0);
+        self.block_len += 1;
+        if self.block_len < BLOCK_SAMPLES {
+            return Ok(());
+        }
+        let sum = self.block_sum;
+        self.block_sum = 0;
+        self.block_len = 0;
+        let result = self.block(sum);
+        if let Err(e) = result {
+            self.last_error = Some(e);
+        }
+        result
+    }
+
+    /// One complete block with sample sum `sum` (Q24 bar abs).
+    fn block(&mut self, sum: i64) -> Result<(), EstimatorError> {
+        const Q24_PER_BAR: f32 = 16_777_216.0;
+        let pressure = sum as f32 * (1.0 / (Q24_PER_BAR * BLOCK_SAMPLES as f32));
+        let prev = self.prev_block_sum.replace(sum);
+        let mut result = Ok(());
+        if let Some(prev) = prev {
+            let obs = BlockObservation {
+                pressure,
+                mid_pressure: (sum + prev) as f32 * (1.0 / (Q24_PER_BAR * 2.0 * BLOCK_SAMPLES as f32)),
+                rate: (sum - prev) as f32 * (1.0 / Q24_PER_BAR),
+            };
+            if self.phase == Phase::ChokedFill {
+                result = self.fill_block(&obs);
+            }
+        }
+        let plateau_result = self.plateau_block(pressure);
+        result.and(plateau_result)
+    }
+
+    fn fill_block(&mut self, obs: &BlockObservation) -> Result<(), EstimatorError> {
+        let reg = ChokedFillModel.regress(obs);
+        self.fill_blocks = self.fill_blocks.saturating_add(1);
+        if self.fill_blocks > self.config.fill_warmup_blocks {
+            let innovation = reg.y - self.fill.predict(&reg.phi);
+            let z = -innovation / self.config.rate_noise_bar_s;
+            self.cusum = (self.cusum + z - self.config.cusum_drift).max(0.0);
+            if !(self.cusum <= self.config.cusum_threshold) {
+                // The inlet left choke or the piston broke away: drop the delayed blocks.
+                self.phase = Phase::Transit;
+                self.pending_len = 0;
+                return Ok(());
+            }
+        }
+        let mut result = Ok(());
+        if self.pending_len == FILL_DELAY_BLOCKS {
+            let oldest = self.pending[0];
+            self.pending.copy_within(1.., 0);
+            self.pending_len -= 1;
+            result = self.fill.update(&oldest.phi, oldest.y).map(|_| ()).map_err(EstimatorError::from);
+        }
+        if let Some(slot) = self.pending.get_mut(self.pending_len) {
+            *slot = reg;
+            self.pending_len += 1;
+        }
+        result
+    }
+
+    fn plateau_block(&mut self, pressure: f32) -> Result<(), EstimatorError> {
+        self.window_sum += pressure;
+        self.window_len += 1;
+        if self.window_len >= WINDOW_BLOCKS {
+            let mean = self.window_sum * (1.0 / WINDOW_BLOCKS as f32);
+            self.window_sum = 0.0;
+            self.window_len = 0;
+            let settled = self.prev_window_mean.is_some_and(|m| (mean - m).abs() < self.config.plateau_tolerance_bar);
+            self.prev_window_mean = Some(mean);
+            if settled {
+                if self.phase != Phase::Plateau {
+                    // Keep the fill phase alive under a choked plateau: its model still holds.
+                    if self.phase == Phase::Transit {
+                        self.phase = Phase::Plateau;
+                    }
+                    if self.plateau_blocks == 0 {
+                        self.plateau.reset();
+                    }
+                }
+                if self.plateau_blocks == 0 {
+                    self.plateau_blocks = 1;
+                }
+            } else if self.plateau_blocks > 0 {
+                // The pressure moved again: start the plateau over when it settles next.
+                self.plateau_blocks = 0;
+                if self.phase == Phase::Plateau {
+                    self.phase = Phase::Transit;
+                }
+            }
+        }
+        if self.plateau_blocks == 0 {
+            return Ok(());
+        }
+        self.plateau_blocks = self.plateau_blocks.saturating_add(1);
+        let reg = PlateauModel.regress(&BlockObservation { pressure, mid_pressure: pressure, rate: 0.0 });
+        self.plateau.update(&reg.phi, reg.y)?;
+        self.update_supply();
+        Ok(())
+    }
+
+    /// Supply from the plateau equilibrium `a · φ(P∞/Ps) = g_leak · ψ(P∞)` (module docs, 2.).
+    fn update_supply(&mut self) {
+        if self.phase == Phase::ChokedFill {
+            // Choked plateau: the equilibrium does not involve Ps.
+            self.supply_abs = None;
+            return;
+        }
+        let p_inf = self.plateau.theta()[0];
+        let [a, g_leak] = *self.fill.theta();
+        let target = if self.fill.updates() > 0 && a > 0.0 { g_leak * model::leak_shape(p_inf) / a } else { 0.0 };
+        let ratio = model::inverse_flow_shape(target);
+        self.supply_abs = Some(p_inf / ratio);
+    }
+
+    /// The current estimates.
+    pub fn estimates(&self) -> Estimates {
+        if !self.in_release && self.fill.updates() == 0 {
+            return Estimates::NONE;
+        }
+        let fill_known = self.fill.updates() > 0;
+        let [a, g_leak] = *self.fill.theta();
+        let diameter = |g: f32| libm::sqrtf(g.max(0.0) * self.mm2_per_conductance);
+        let supply = self.supply_abs.filter(|s| s.is_finite() && *s > 0.0);
+        let orifice = (fill_known && a > 0.0).then(|| diameter(a / supply.unwrap_or(self.nominal_supply_abs)));
+        let plateau = (self.plateau_blocks > 0).then(|| self.plateau.theta()[0] - 1.0);
+        Estimates {
+            inflow_rate_bar_s: fill_known.then_some(a),
+            leak_conductance_per_s: fill_known.then_some(g_leak),
+            leak_mm: fill_known.then(|| diameter(g_leak)),
+            orifice_mm: orifice,
+            plateau_bar_g: plateau,
+            supply_bar_g: supply.map(|s| s - 1.0),
+            phase: self.phase,
+            state: self.state(),
+        }
+    }
+
+    /// State for the status report: idle outside a release, frozen while a covariance guard
+    /// is active, settled once a plateau has been seen long enough, converging otherwise.
+    pub fn state(&self) -> EstimatorState {
+        if !self.in_release {
+            EstimatorState::Idle
+        } else if self.fill.guard_active() || self.plateau.guard_active() {
+            EstimatorState::Frozen
+        } else if self.plateau_blocks > self.config.settle_blocks && self.fill.updates() >= self.config.settle_blocks {
+            EstimatorState::Settled
+        } else {
+            EstimatorState::Converging
+        }
+    }
+}
