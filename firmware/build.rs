@@ -1,15 +1,106 @@
 //! Link arguments for the firmware binaries (never in .cargo/config.toml, which the host
-//! workspace shares), and the memory map from the repository root.
+//! workspace shares), the memory map from the repository root, and the ADC trace that the
+//! QEMU "ADC" plays back, compiled into flash.
+//!
+//! Trace source (one release, valve open from the first sample, 100 Hz):
+//! - `PBM_FW_TRACE=<file>`: a SPEC §7 trace in raw-counts form (`t_s,adc` header, `#` comment
+//!   lines allowed). Only that canonical form is accepted here, strictly; pressure traces
+//!   (`t_s,p_bar`) are converted by the host tools first. The build fails with the file and line
+//!   of anything else.
+//! - unset: the nominal release of the core's own twin, read through the SPEC's sensor map
+//!   without noise (`pbm::sensor::adc_from_bar`), 60 s.
 
-use std::path::PathBuf;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Samples of the default trace (60 s at 100 Hz, SPEC §5).
+const DEFAULT_SAMPLES: usize = 6000;
+/// Longest trace that fits the flash budget (2 bytes a sample): 10 minutes.
+const MAX_SAMPLES: usize = 60_000;
+
+fn nominal_trace() -> Vec<u16> {
+    let mut twin = pbm::Twin::new(&pbm::TwinParams::nominal()).expect("nominal parameters are valid");
+    let mut p = pbm::PressureQ24::ATMOSPHERE;
+    (0..DEFAULT_SAMPLES)
+        .map(|_| {
+            // Sample n is the chamber after n twin updates (the monitor's convention).
+            let adc = pbm::sensor::adc_from_bar(p.to_bar_g()).0;
+            p = twin.update(true).pressure;
+            adc
+        })
+        .collect()
+}
+
+fn read_adc_trace(path: &Path) -> Result<Vec<u16>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut samples = Vec::new();
+    let mut header_seen = false;
+    let mut last_t = f64::NEG_INFINITY;
+    for (i, raw) in text.lines().enumerate() {
+        let at = || format!("{}:{}", path.display(), i + 1);
+        let line = raw.trim().trim_start_matches('\u{feff}');
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let mut cols = line.split(',').map(str::trim);
+        let (t, v) = (cols.next().unwrap_or(""), cols.next().unwrap_or(""));
+        if !header_seen {
+            if (t, v) != ("t_s", "adc") {
+                return Err(format!("{}: header must start with `t_s,adc` (got `{line}`)", at()));
+            }
+            header_seen = true;
+            continue;
+        }
+        let t: f64 = t.parse().map_err(|_| format!("{}: bad time `{t}`", at()))?;
+        if !(t.is_finite() && t > last_t) {
+            return Err(format!("{}: time must increase", at()));
+        }
+        last_t = t;
+        let v: u16 = v.parse().map_err(|_| format!("{}: bad ADC code `{v}`", at()))?;
+        if v > 4095 {
+            return Err(format!("{}: ADC code {v} above 12 bits", at()));
+        }
+        samples.push(v);
+        if samples.len() > MAX_SAMPLES {
+            return Err(format!("{}: more than {MAX_SAMPLES} samples", path.display()));
+        }
+    }
+    if samples.is_empty() {
+        return Err(format!("{}: no samples", path.display()));
+    }
+    Ok(samples)
+}
 
 fn main() {
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
     let root = manifest.parent().expect("firmware/ sits in the repository root");
+    let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
+
     // cortex-m-rt's link.x INCLUDEs memory.x from the linker search path.
     println!("cargo:rustc-link-search={}", root.display());
     println!("cargo:rerun-if-changed={}", root.join("memory.x").display());
-    println!("cargo:rerun-if-changed={}", root.join("tests/golden/nominal_checkpoints.csv").display());
     println!("cargo:rerun-if-changed=build.rs");
+    println!("cargo:rerun-if-env-changed=PBM_FW_TRACE");
     println!("cargo:rustc-link-arg-bins=-Tlink.x");
+
+    let (name, samples) = match std::env::var_os("PBM_FW_TRACE") {
+        Some(p) => {
+            let path = PathBuf::from(p);
+            println!("cargo:rerun-if-changed={}", path.display());
+            match read_adc_trace(&path) {
+                Ok(s) => (path.display().to_string(), s),
+                Err(e) => {
+                    eprintln!("PBM_FW_TRACE: {e}");
+                    std::process::exit(1);
+                }
+            }
+        }
+        None => ("nominal release of the core twin (noise-free)".to_string(), nominal_trace()),
+    };
+    let mut s = String::new();
+    writeln!(s, "/// Where the compiled-in trace came from.").unwrap();
+    writeln!(s, "pub const ADC_TRACE_NAME: &str = {name:?};").unwrap();
+    writeln!(s, "/// ADC codes of one release, 100 Hz, from the release command.").unwrap();
+    writeln!(s, "pub static ADC_TRACE: [u16; {}] = {samples:?};", samples.len()).unwrap();
+    std::fs::write(out.join("adc_trace.rs"), s).expect("write adc_trace.rs");
 }

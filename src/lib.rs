@@ -20,6 +20,8 @@
 #![allow(clippy::precedence)]
 
 pub mod can;
+pub mod classifier;
+pub mod estimator;
 pub mod fault;
 pub mod features;
 pub mod fixed;

@@ -1,8 +1,13 @@
 //! The per-sample monitor pipeline: ADC reading and valve command in, twin, residual and
 //! reports out. This is the one entry point the firmware and `host-sim replay` call.
+//!
+//! Every sample also feeds the online [`ReleaseEstimator`]; [`MonitorStep::estimates`] carries
+//! its current estimates, [`Monitor::status`] its state, and [`Monitor::fault_report`] fills the
+//! estimated supply and leak of a [`FaultReport`] around a verdict from the classifier.
 
+use crate::estimator::{Estimates, EstimatorConfig, EstimatorError, ReleaseEstimator};
 use crate::params::{ParamError, TwinParams};
-use crate::report::{EstimatorState, StatusReport};
+use crate::report::{FaultReport, StatusReport, Verdict};
 use crate::sensor::{pressure_from_adc, SensorFault};
 use crate::twin::{Twin, TwinSample};
 use crate::units::{AdcCounts, PressureQ24};
@@ -11,7 +16,7 @@ use crate::units::{AdcCounts, PressureQ24};
 pub const VERSION: (u8, u8) = (0, 1);
 
 /// What one monitor step produced.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MonitorStep {
     /// Measured chamber pressure, or why the reading is not one.
     pub measured: Result<PressureQ24, SensorFault>,
@@ -21,6 +26,8 @@ pub struct MonitorStep {
     pub residual_q24: i32,
     /// Samples since the release command (0 when no release is in progress).
     pub samples_since_release: u32,
+    /// The online estimates after this sample.
+    pub estimates: Estimates,
 }
 
 /// The monitor: twin of the nominal brake run beside the measurement.
@@ -30,16 +37,23 @@ pub struct Monitor {
     valve_was_open: bool,
     samples_since_release: u32,
     last_measured: Result<PressureQ24, SensorFault>,
+    estimator: ReleaseEstimator,
 }
 
 impl Monitor {
     /// A monitor whose twin is the given brake (normally [`TwinParams::nominal`]).
     pub fn new(params: &TwinParams) -> Result<Self, ParamError> {
+        let twin = Twin::new(params)?;
+        // `Twin::new` has validated `params`, and the default estimator configuration is valid,
+        // so this cannot fail; should it ever, report it as the parameter it depends on most.
+        let estimator =
+            ReleaseEstimator::new(params, EstimatorConfig::default()).map_err(|_| ParamError::DischargeCoeff)?;
         Ok(Self {
-            twin: Twin::new(params)?,
+            twin,
             valve_was_open: false,
             samples_since_release: 0,
             last_measured: Ok(PressureQ24::ATMOSPHERE),
+            estimator,
         })
     }
 
@@ -59,11 +73,15 @@ impl Monitor {
             Ok(p) => p.0.saturating_sub(twin.pressure.0),
             Err(_) => 0,
         };
+        // A refused regression is recorded by the estimator and reported through `status`;
+        // the sample itself is still monitored.
+        let _ = self.estimator.update(measured.ok(), valve_open);
         let step = MonitorStep {
             measured,
             twin,
             residual_q24,
             samples_since_release: if valve_open { self.samples_since_release } else { 0 },
+            estimates: self.estimator.estimates(),
         };
         self.twin.update(valve_open);
         if valve_open {
@@ -85,9 +103,33 @@ impl Monitor {
         };
         StatusReport {
             sensor_fault: self.last_measured.err(),
-            estimator: if self.valve_was_open { EstimatorState::Converging } else { EstimatorState::Idle },
+            estimator: self.estimator.state(),
             pressure_mbar,
             version: VERSION,
+        }
+    }
+
+    /// The online estimator (estimates, phase, last error).
+    pub fn estimator(&self) -> &ReleaseEstimator {
+        &self.estimator
+    }
+
+    /// The last error the estimator reported in this release (`None`: all clean).
+    pub fn estimator_error(&self) -> Option<EstimatorError> {
+        self.estimator.last_error()
+    }
+
+    /// A fault report for `verdict` (from the classifier) with the time since the release and
+    /// the estimated supply and leak filled in. `release_completed`: the estimator has seen
+    /// the final plateau.
+    pub fn fault_report(&self, verdict: Verdict) -> FaultReport {
+        let est = self.estimator.estimates();
+        FaultReport {
+            verdict,
+            time_since_release_cs: self.samples_since_release.min(u32::from(u16::MAX)) as u16,
+            supply_mbar: est.supply_mbar(),
+            leak_um: est.leak_um(),
+            release_completed: est.phase == crate::estimator::Phase::Plateau,
         }
     }
 }

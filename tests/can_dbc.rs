@@ -90,7 +90,8 @@ fn value_tables_match_the_code() {
     diagnosis.push((i64::from(layout::DIAGNOSIS_CANNOT_DIAGNOSE), "cannot_diagnose".into()));
     assert_eq!(table(&layout::FAULT_REPORT, layout::DIAGNOSIS.name), diagnosis);
 
-    let labels = |l: &[&str]| -> Vec<(i64, String)> { l.iter().enumerate().map(|(i, s)| (i as i64, s.to_string())).collect() };
+    let labels =
+        |l: &[&str]| -> Vec<(i64, String)> { l.iter().enumerate().map(|(i, s)| (i as i64, s.to_string())).collect() };
     assert_eq!(table(&layout::FAULT_REPORT, layout::NO_DIAGNOSIS_REASON.name), labels(&layout::reason::LABELS));
     assert_eq!(table(&layout::STATUS, layout::SENSOR_HEALTH.name), labels(&layout::sensor_health::LABELS));
     assert_eq!(table(&layout::STATUS, layout::ESTIMATOR_STATE.name), labels(&layout::ESTIMATOR_STATE_LABELS));

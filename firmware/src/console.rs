@@ -25,6 +25,26 @@ pub fn print_line(args: core::fmt::Arguments<'_>) {
     cortex_m_semihosting::hprint!("{}", line.as_str());
 }
 
+/// As [`print_line`], to the host's standard error (logs of the `monitor` binary, whose standard
+/// output carries only the candump log).
+pub fn eprint_line(args: core::fmt::Arguments<'_>) {
+    let mut line: heapless::String<LINE_CAPACITY> = heapless::String::new();
+    let _ = line.write_fmt(args);
+    if line.push('\n').is_err() {
+        line.pop();
+        let _ = line.push('\n');
+    }
+    cortex_m_semihosting::heprint!("{}", line.as_str());
+}
+
+/// `eprintln!`-like wrapper around [`eprint_line`].
+#[macro_export]
+macro_rules! eprintln {
+    ($($arg:tt)*) => {
+        $crate::console::eprint_line(format_args!($($arg)*))
+    };
+}
+
 /// `println!`-like wrapper around [`print_line`].
 #[macro_export]
 macro_rules! println {

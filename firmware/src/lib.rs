@@ -10,11 +10,21 @@
 //!   handler.
 //! - [`golden`]: the host-computed checkpoints of the nominal release, compiled into flash.
 //!
-//! Binaries: `twin-check` (the twin in QEMU against the host's golden values).
+//! - [`adc`]: the pressure ADC trait and the QEMU trace player.
+//! - [`candump`]: an `embedded_can::blocking::Can` that writes candump log lines.
+//! - [`stack`]: peak stack by painting.
+//! - [`pipeline`]: the per-sample work (core monitor + CAN schedule), shared with the benchmark.
+//!
+//! Binaries: `twin-check` (the twin in QEMU against the host's golden values), `monitor` (the
+//! monitor as embassy tasks: ADC, monitor, CAN, watchdog) and `bench` (cost figures).
 #![no_std]
 #![deny(missing_docs)]
 
+pub mod adc;
+pub mod candump;
 pub mod console;
 pub mod executor;
 pub mod golden;
+pub mod pipeline;
+pub mod stack;
 pub mod time_driver;

@@ -147,11 +147,16 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     let mut md = String::new();
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
-        .and_then(|s| s.lines().find(|l| l.starts_with("model name")).map(|l| l.split(':').nth(1).unwrap_or("").trim().to_owned()))
+        .and_then(|s| {
+            s.lines().find(|l| l.starts_with("model name")).map(|l| l.split(':').nth(1).unwrap_or("").trim().to_owned())
+        })
         .unwrap_or_else(|| "unknown CPU".to_owned());
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
     let _ = writeln!(md, "# host-sim bench\n");
-    let _ = writeln!(md, "Command: `cargo run --release -p host-sim -- bench` (release profile). Machine: {cpu}, {cores} cores");
+    let _ = writeln!(
+        md,
+        "Command: `cargo run --release -p host-sim -- bench` (release profile). Machine: {cpu}, {cores} cores"
+    );
     let _ = writeln!(md, "(shared with other jobs; figures are wall-clock and therefore lower bounds).\n");
     println!("machine: {cpu}, {cores} cores");
 

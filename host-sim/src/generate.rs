@@ -120,9 +120,27 @@ pub struct GenerateArgs {
     /// Overwrite a non-empty output directory.
     #[arg(long)]
     pub force: bool,
-    /// Plant effect NAME=VALUE (repeatable). No effects exist yet; every name is rejected.
+    /// Plant effect NAME=VALUE (repeatable), see `host_sim::plant` for names, units and ranges.
     #[arg(long = "effect", value_parser = parse_effect_arg)]
     pub effects: Vec<(String, f64)>,
+}
+
+impl GenerateArgs {
+    /// The command-line defaults with output directory `out` (for tests and other tools).
+    pub fn with_defaults(out: PathBuf) -> Self {
+        #[derive(clap::Parser)]
+        struct Wrapper {
+            #[command(flatten)]
+            args: GenerateArgs,
+        }
+        let mut out_arg = std::ffi::OsString::from("--out=");
+        out_arg.push(out.as_os_str());
+        match <Wrapper as clap::Parser>::try_parse_from([std::ffi::OsString::from("generate"), out_arg]) {
+            Ok(w) => w.args,
+            // Only a change that breaks the defaults themselves can get here.
+            Err(e) => unreachable!("GenerateArgs defaults do not parse: {e}"),
+        }
+    }
 }
 
 fn parse_effect_arg(s: &str) -> Result<(String, f64), String> {
@@ -134,19 +152,19 @@ fn parse_effect_arg(s: &str) -> Result<(String, f64), String> {
     Ok((name.trim().to_owned(), value))
 }
 
-/// Plant effects beyond SPEC §2 applied while generating (the hook for `--effect`). None are
-/// implemented yet: [`PlantEffects::from_args`] rejects every name.
+/// Plant effects beyond SPEC §2 applied while generating (the hook for `--effect`), from the
+/// library of [`crate::plant`].
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 #[non_exhaustive]
-pub struct PlantEffects {}
+pub struct PlantEffects {
+    /// Mechanisms applied to every trace's plant.
+    pub ext: pbm::params::Extensions,
+}
 
 impl PlantEffects {
     /// Validates `--effect NAME=VALUE` pairs.
     pub fn from_args(effects: &[(String, f64)]) -> Result<Self> {
-        if let Some((name, _)) = effects.first() {
-            bail!("unknown plant effect `{name}`: no plant effects are implemented yet");
-        }
-        Ok(Self::default())
+        Ok(Self { ext: crate::plant::extensions_from_pairs(effects)? })
     }
 }
 
@@ -227,7 +245,7 @@ pub fn simulate_plant(params: &TwinParams, step_s: f64, samples: usize) -> Resul
     let mut p = Vec::with_capacity(samples);
     let mut x = Vec::with_capacity(samples);
     for _ in 0..samples {
-        p.push(twin.pressure_bar_g());
+        p.push(twin.sensor_bar_g());
         x.push(twin.state.x * 1e3);
         twin.advance(SAMPLE_PERIOD_S, true);
     }
@@ -340,10 +358,16 @@ pub struct TraceTruth {
 }
 
 /// Simulates one job: its ADC samples and ground truth.
-pub fn run_job(job: &TraceJob, fleet: &[Locomotive], seed: u64, _effects: &PlantEffects) -> Result<(Vec<u16>, TraceTruth)> {
+pub fn run_job(
+    job: &TraceJob,
+    fleet: &[Locomotive],
+    seed: u64,
+    effects: &PlantEffects,
+) -> Result<(Vec<u16>, TraceTruth)> {
     let loco = fleet.get(job.locomotive).context("locomotive index out of range")?;
     let mut rng = job.rng(seed);
-    let params = draw_fault(&loco.params, job.class, &mut rng);
+    let mut params = draw_fault(&loco.params, job.class, &mut rng);
+    params.ext = effects.ext;
     let (p, x) = simulate_plant(&params, GENERATE_STEP_S, TRACE_SAMPLES)?;
     let adc = sense(&p, &mut rng);
     let truth = TraceTruth {
@@ -477,10 +501,8 @@ fn prepare_out_dir(out: &Path, force: bool) -> Result<()> {
         if !out.is_dir() {
             bail!("--out {} exists and is not a directory", out.display());
         }
-        let non_empty = std::fs::read_dir(out)
-            .with_context(|| format!("cannot read {}", out.display()))?
-            .next()
-            .is_some();
+        let non_empty =
+            std::fs::read_dir(out).with_context(|| format!("cannot read {}", out.display()))?.next().is_some();
         if non_empty && !force {
             bail!("--out {} is not empty (use --force to overwrite)", out.display());
         }

@@ -3,8 +3,19 @@
 #![deny(missing_docs)]
 
 pub mod bench;
+pub mod can_bus;
+pub mod can_cmd;
+pub mod can_log;
 pub mod dataset;
+pub mod estimate;
+pub mod evaluate;
+pub mod fit;
 pub mod generate;
+pub mod nn;
+pub mod plant;
+pub mod plot;
 pub mod reference;
+pub mod replay;
 pub mod simulate;
 pub mod trace;
+pub mod train;

@@ -22,6 +22,18 @@ enum Command {
     Generate(host_sim::generate::GenerateArgs),
     /// Print throughput figures (twin, monitor pipeline, generate) and write bench/host.md.
     Bench(host_sim::bench::BenchArgs),
+    /// Replay a trace or a data set through the monitor pipeline (results CSV, summary, plots).
+    Replay(host_sim::replay::ReplayArgs),
+    /// CAN reports: decode a candump log or interface as the cab display shows it, send, demo log.
+    Can(host_sim::can_cmd::CanArgs),
+    /// Batch least-squares fit of twin parameters per trace (the paper's θ or the fault parameters).
+    Fit(host_sim::fit::FitArgs),
+    /// Accuracy of the online estimator against known truth: table, CSV, scatter plots.
+    Estimate(host_sim::estimate::EstimateArgs),
+    /// Train the paper's three classifiers and ours; quantize ours to int8.
+    Train(host_sim::train::TrainArgs),
+    /// Accuracy and confusion matrices of the trained classifiers on a data set's test split.
+    Evaluate(host_sim::evaluate::EvaluateArgs),
 }
 
 #[derive(clap::Args)]
@@ -52,6 +64,12 @@ fn main() {
         Command::Simulate(args) => cmd_simulate(&args),
         Command::Generate(args) => host_sim::generate::run(&args),
         Command::Bench(args) => host_sim::bench::run(&args),
+        Command::Replay(args) => host_sim::replay::run(&args),
+        Command::Can(args) => host_sim::can_cmd::run(&args),
+        Command::Fit(args) => host_sim::fit::run(&args),
+        Command::Estimate(args) => host_sim::estimate::run(&args),
+        Command::Train(args) => host_sim::train::run(&args),
+        Command::Evaluate(args) => host_sim::evaluate::run(&args),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

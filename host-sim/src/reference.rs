@@ -4,8 +4,16 @@
 //! Same physics, same end-stop convention (inelastic constraints at 0 and L), independent
 //! arithmetic: f64 everywhere, `powf`/`sqrt`/`exp` instead of tables, a 20 µs step (50× finer
 //! than the core's 1 ms substep) with the same semi-implicit treatment of linear damping.
+//!
+//! It is also the "measured-like" plant of the model-discrepancy audit: the mechanisms of
+//! [`pbm::params::Extensions`] (see there for their definitions) are evaluated here in f64,
+//! independently of the core's integer terms. The gas temperature is a state (energy equation)
+//! when heat transfer is on; the valve command travels through a delay line and the valve opens
+//! with a first-order area lag; the transducer ([`ReferenceTwin::sensor_bar_g`]) lags, offsets
+//! and scales the chamber pressure. With no extension the step is the base model's, unchanged.
 
 use pbm::params::{c1, c2, circle_area, CRITICAL_RATIO, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
+use pbm::Meters;
 use pbm::{ParamError, TwinParams};
 
 /// Integration step of the reference, seconds.
@@ -45,6 +53,23 @@ pub struct ReferenceState {
     pub z: f64,
 }
 
+/// State of the plant's optional mechanisms.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PlantExtState {
+    /// Last valve command.
+    pub command: bool,
+    /// Valve position the chamber sees (after the transport delay).
+    pub effective: bool,
+    /// Time since the last command change, s (`None`: it has arrived).
+    pub pending_s: Option<f64>,
+    /// Time since the effective valve last switched, s.
+    pub since_switch_s: f64,
+    /// Gas temperature, K.
+    pub gas_k: f64,
+    /// Transducer state (lagged chamber gauge pressure), bar.
+    pub sensed_bar_g: f64,
+}
+
 /// The f64 reference twin.
 #[derive(Debug, Clone)]
 pub struct ReferenceTwin {
@@ -54,6 +79,8 @@ pub struct ReferenceTwin {
     step_s: f64,
     /// Current state.
     pub state: ReferenceState,
+    /// State of the optional mechanisms.
+    pub ext_state: PlantExtState,
 }
 
 impl ReferenceTwin {
@@ -66,6 +93,14 @@ impl ReferenceTwin {
             area_leak: circle_area(params.leak),
             step_s: REFERENCE_STEP_S,
             state: ReferenceState { p: P0, x: 0.0, v: 0.0, z: 0.0 },
+            ext_state: PlantExtState {
+                command: false,
+                effective: false,
+                pending_s: None,
+                since_switch_s: 1e9,
+                gas_k: if params.ext.heat_transfer_s > 0.0 { TEMPERATURE_K } else { params.ext.supply_temperature_k() },
+                sensed_bar_g: 0.0,
+            },
         })
     }
 
@@ -79,9 +114,138 @@ impl ReferenceTwin {
     /// Advances `duration` seconds with the valve open (release) or closed (vent).
     pub fn advance(&mut self, duration: f64, valve_open: bool) {
         let n = (duration / self.step_s).round() as u64;
-        for _ in 0..n {
-            self.step(self.step_s, valve_open);
+        if self.params.ext.is_none() {
+            for _ in 0..n {
+                self.step(self.step_s, valve_open);
+            }
+        } else {
+            for _ in 0..n {
+                self.step_extended(self.step_s, valve_open);
+            }
         }
+    }
+
+    /// What the transducer reads, bar g: the chamber pressure without sensor extensions, else
+    /// `offset + gain · lag(p)`.
+    pub fn sensor_bar_g(&self) -> f64 {
+        let e = &self.params.ext;
+        if !e.has_sensor_terms() {
+            return self.pressure_bar_g();
+        }
+        let lagged = if e.sensor_lag_s > 0.0 { self.ext_state.sensed_bar_g } else { self.pressure_bar_g() };
+        e.sensor_offset_bar + e.sensor_gain * lagged
+    }
+
+    /// One step with the optional mechanisms (f64, independent of the core's integer terms).
+    fn step_extended(&mut self, h: f64, valve_open: bool) {
+        let q = self.params;
+        let e = q.ext;
+        let es = &mut self.ext_state;
+        // Valve command through the delay line, then first-order opening of the new path.
+        if valve_open != es.command {
+            es.command = valve_open;
+            es.pending_s = Some(0.0);
+        }
+        // The switch may fall inside this step, at `ts` seconds from its start.
+        let area_frac = |since: f64| if e.valve_lag_s > 0.0 { 1.0 - (-since / e.valve_lag_s).exp() } else { 1.0 };
+        let mut switch_at = None;
+        if let Some(t) = es.pending_s {
+            if t + h >= e.transport_delay_s {
+                switch_at = Some((e.transport_delay_s - t).clamp(0.0, h));
+                es.pending_s = None;
+            } else {
+                es.pending_s = Some(t + h);
+            }
+        }
+        let paths = match switch_at {
+            Some(ts) => {
+                let old = (es.effective, ts / h * area_frac(es.since_switch_s + 0.5 * ts));
+                es.effective = es.command;
+                es.since_switch_s = h - ts;
+                [old, (es.effective, (h - ts) / h * area_frac(0.5 * (h - ts)))]
+            }
+            None => {
+                let cur = (es.effective, area_frac(es.since_switch_s + 0.5 * h));
+                es.since_switch_s += h;
+                [cur, (false, 0.0)]
+            }
+        };
+
+        let s = self.state;
+        let a = q.piston_area_m2;
+        let l = q.stroke.0;
+        // Piston with the progressive spring F0 + K (1 + β x/L) x.
+        let g = q.coulomb_n + (q.static_n - q.coulomb_n) * (-(s.v / q.stribeck_m_per_s).powi(2)).exp();
+        let zdot_nl_per_v = q.sigma0_n_per_m * s.z / g;
+        let spring = q.preload_n + q.spring_rate_n_per_m * (1.0 + e.progressive_spring * s.x / l) * s.x;
+        let f_ext = (s.p - P0) * a - spring - q.sigma0_n_per_m * s.z + q.sigma1_n_s_per_m * s.v.abs() * zdot_nl_per_v;
+        let c = q.sigma1_n_s_per_m + q.viscous_n_s_per_m;
+        let mut v = (s.v + h / q.mass_kg * f_ext) / (1.0 + h * c / q.mass_kg);
+        let mut x = s.x + h * v;
+        if x <= 0.0 {
+            x = 0.0;
+            v = 0.0;
+        } else if x >= l {
+            x = l;
+            v = 0.0;
+        }
+        let z = s.z + h * (v - v.abs() * zdot_nl_per_v);
+        let dx = x - s.x;
+
+        // Chamber energy balance: V dp = (k−1)(cp Ts m_in − cp T m_out + Q) dt − k p dV, with the
+        // orifice flows at their upstream temperature.
+        let t_supply = e.supply_temperature_k();
+        let thermal = e.heat_transfer_s > 0.0;
+        let t_gas = es.gas_k;
+        let vol = q.dead_volume_m3 + a * s.x;
+        let supply = q.supply.to_abs_pa();
+        let nominal_area = circle_area(Meters::from_mm(pbm::TwinParams::NOMINAL_ORIFICE_MM));
+        let m_ref = q.discharge_coeff * nominal_area * c1() * supply / t_supply.sqrt();
+        let flow = |pu: f64, pd: f64, area: f64, t_up: f64, t_down: f64| {
+            // Mass flow with the upstream temperature; returns (mass, enthalpy temperature).
+            let m = orifice_mass_flow(q.discharge_coeff, area, pu, pd);
+            if m >= 0.0 {
+                (m * (TEMPERATURE_K / t_up).sqrt(), t_up)
+            } else {
+                (m * (TEMPERATURE_K / t_down).sqrt(), t_down)
+            }
+        };
+        let (mut m_net, mut h_net) = (0.0, 0.0);
+        for (open, share) in paths {
+            if share <= 0.0 {
+                continue;
+            }
+            let mut pu = if open { supply } else { P0 };
+            if open && e.regulator_droop_bar > 0.0 {
+                // Implicit supply sag pu = Ps − droop · m(pu)/m_ref, solved by iteration.
+                for _ in 0..6 {
+                    let (m, _) = flow(pu, s.p, self.area_in, t_supply, t_gas);
+                    pu = supply - e.regulator_droop_bar * 1e5 * (share * m).max(0.0) / m_ref;
+                }
+            }
+            let t_up = if open { t_supply } else { t_gas };
+            let (m, t) = flow(pu, s.p, self.area_in, t_up, t_gas);
+            m_net += share * m;
+            h_net += share * m * t;
+        }
+        let (m_leak, _) = flow(s.p, P0, self.area_leak, t_gas, t_gas);
+        let m_lam = e.laminar_leak_g_per_s * 1e-3 * (s.p - P0) / 7e5;
+        m_net -= m_leak + m_lam;
+        h_net -= (m_leak + m_lam) * t_gas;
+        let heat = if thermal { s.p * (TEMPERATURE_K - t_gas) / (t_gas * e.heat_transfer_s) } else { 0.0 };
+        let dp = (KAPPA * GAS_CONSTANT / vol * h_net + heat) * h - KAPPA * s.p / vol * a * dx;
+        let p_new = (s.p + dp).max(0.0);
+        if thermal {
+            // T = pV/(mR): dT/T = dp/p + dV/V − dm/m, m = pV/(RT).
+            let mass = s.p * vol / (GAS_CONSTANT * t_gas);
+            let rel = dp / s.p.max(1.0) + a * dx / vol - m_net * h / mass.max(1e-12);
+            es.gas_k = (t_gas * (1.0 + rel)).clamp(50.0, 2000.0);
+        }
+        if e.sensor_lag_s > 0.0 {
+            let target = p_new / 1e5 - 1.0;
+            es.sensed_bar_g = target + (es.sensed_bar_g - target) * (-h / e.sensor_lag_s).exp();
+        }
+        self.state = ReferenceState { p: p_new, x, v, z };
     }
 
     fn step(&mut self, h: f64, valve_open: bool) {

@@ -49,7 +49,7 @@ pub fn simulate(engine: Engine, params: &TwinParams, duration_s: f64) -> Result<
             for i in 0..n {
                 out.push(SimSample {
                     t_s: i as f64 * SAMPLE_PERIOD_S,
-                    p_bar: twin.pressure_bar_g(),
+                    p_bar: twin.sensor_bar_g(),
                     x_mm: twin.state.x * 1e3,
                 });
                 twin.advance(SAMPLE_PERIOD_S, true);

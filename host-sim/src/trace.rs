@@ -186,7 +186,9 @@ impl fmt::Display for TraceErrorKind {
             Self::TooLarge { limit } => write!(f, "file larger than the {limit}-byte limit for a trace"),
             Self::Empty => f.write_str("empty file: expected a `t_s,p_bar` or `t_s,adc` header and samples"),
             Self::NotUtf8 => f.write_str("not valid UTF-8"),
-            Self::MissingHeader => f.write_str("missing header: expected `t_s,p_bar` or `t_s,adc` before the first row"),
+            Self::MissingHeader => {
+                f.write_str("missing header: expected `t_s,p_bar` or `t_s,adc` before the first row")
+            }
             Self::BadHeader => f.write_str("bad header: must start with `t_s,p_bar` or `t_s,adc`"),
             Self::BadColumnName { column } => write!(f, "bad header: column {column} name is empty or repeated"),
             Self::DuplicateMetadata => f.write_str("metadata key repeated"),

@@ -16,7 +16,8 @@ fn both(params: TwinParams) -> [(Engine, Vec<SimSample>); 2] {
 
 fn both_for(params: TwinParams, duration_s: f64) -> [(Engine, Vec<SimSample>); 2] {
     std::thread::scope(|s| {
-        let handles = ENGINES.map(|e| s.spawn(move || (e, simulate(e, &params, duration_s).expect("valid parameters"))));
+        let handles =
+            ENGINES.map(|e| s.spawn(move || (e, simulate(e, &params, duration_s).expect("valid parameters"))));
         handles.map(|h| h.join().expect("simulation thread"))
     })
 }
@@ -103,9 +104,8 @@ fn leak_plateau_matches_reference() {
 /// NMSE in percent; where the chamber never rises above the NMSE floor of 0.2 bar g (a large
 /// leak on a small orifice), the largest absolute error in percent of 1 bar instead.
 fn deviation_pct(reference: &[f64], fixed: &[f64]) -> f64 {
-    nmse_pct(reference, fixed).unwrap_or_else(|| {
-        100.0 * reference.iter().zip(fixed).map(|(r, f)| (r - f).abs()).fold(0.0, f64::max)
-    })
+    nmse_pct(reference, fixed)
+        .unwrap_or_else(|| 100.0 * reference.iter().zip(fixed).map(|(r, f)| (r - f).abs()).fold(0.0, f64::max))
 }
 
 /// Fixed-point vs f64 over the fault space: orifice 0.35–4 mm, leak 0–1.2 mm, supply 3.5–7.7 bar.

@@ -268,7 +268,10 @@ pub fn check_frame(frame: &impl embedded_can::Frame) -> Result<(MessageKind, u64
 pub fn decode_signals(kind: MessageKind, bits: u64) -> Result<Report, FrameError> {
     let reserved = bits & kind.layout().reserved_mask();
     if reserved != 0 {
-        return Err(FrameError::InvalidSignal { signal: "reserved", raw: (reserved >> reserved.trailing_zeros()) as u16 });
+        return Err(FrameError::InvalidSignal {
+            signal: "reserved",
+            raw: (reserved >> reserved.trailing_zeros()) as u16,
+        });
     }
     match kind {
         MessageKind::Fault => decode_fault_signals(bits).map(Report::Fault),

@@ -143,8 +143,7 @@ pub mod reason {
     /// Inputs unlike any known brake.
     pub const IMPLAUSIBLE: u8 = 4;
     /// Labels as in the DBC `VAL_` table, indexed by code.
-    pub const LABELS: [&str; 5] =
-        ["none", "sensor_open_circuit", "sensor_short_circuit", "too_short", "implausible"];
+    pub const LABELS: [&str; 5] = ["none", "sensor_open_circuit", "sensor_short_circuit", "too_short", "implausible"];
 }
 
 /// The fault report frame.
@@ -206,7 +205,15 @@ pub const STATUS: Message = Message {
     dlc: 8,
     data_id: 0xFF51,
     cycle_ms: 1000,
-    signals: &[STATUS_CRC, STATUS_COUNTER, SENSOR_HEALTH, ESTIMATOR_STATE, CHAMBER_PRESSURE, FIRMWARE_MAJOR, FIRMWARE_MINOR],
+    signals: &[
+        STATUS_CRC,
+        STATUS_COUNTER,
+        SENSOR_HEALTH,
+        ESTIMATOR_STATE,
+        CHAMBER_PRESSURE,
+        FIRMWARE_MAJOR,
+        FIRMWARE_MINOR,
+    ],
 };
 
 /// Every message the monitor transmits. Nothing else is ever sent.

@@ -35,21 +35,29 @@
 //!      (from 0 at atmosphere to ≈ 4.6 bar at the end of the choked window), so the slope of
 //!      `dp/dt` against ψ separates it from `a`; without a leak the slope is 0.
 //!
-//!    The phase ends when the inlet leaves choke or the piston breaks away: both make `dp/dt`
-//!    fall below the model. A one-sided CUSUM of the normalised a-priori innovation detects it;
-//!    regressions are fed to the RLS [`FILL_DELAY_BLOCKS`] blocks late, so the blocks between the
-//!    change and its detection are dropped rather than learnt. A fill that never leaves choke
-//!    (large leak with a blocked orifice: the pressure settles below 0.528 · Ps) keeps the model
-//!    valid to the end.
+//!    Where choke ends depends on the unknown Ps, so [`FILL_CUTOFFS_BAR_ABS`] runs one RLS per
+//!    upper pressure cutoff (2.3 … 4.55 bar abs, the choke limits of Ps = 4.36 … 8.6 bar abs),
+//!    each fed only the blocks below its cutoff. Once the plateau bounds Ps from below
+//!    (Ps ≥ P∞), the RLS with the highest cutoff ≤ 0.528 · Ps is the one whose data were all
+//!    choked ([`ReleaseEstimator::selected_window`]); before that, the highest cutoff (choked for
+//!    any supply ≥ 7.6 bar g, the regulator setting) is reported. The top cutoff 4.55 bar abs is
+//!    below the lowest breakaway of the fleet (F0 − 5 % + Fs ≈ 4.8 bar abs), so the piston is at
+//!    rest in every window. As a safety net for brakes outside the SPEC ranges, a one-sided
+//!    CUSUM of the a-priori innovation (normalised by its predicted standard deviation
+//!    `σ·√(1 + φᵀPφ)`) ends the fill when `dp/dt` falls below the model (breakaway); regressions
+//!    reach the RLS [`FILL_DELAY_BLOCKS`] blocks late so the blocks between the change and its
+//!    detection are dropped rather than learnt. A fill whose plateau is itself choked (large
+//!    leak, blocked orifice) keeps all windows valid to the end.
 //! 2. **Plateau** ([`model::PlateauModel`]): once the 1 s mean pressure changes by less than
 //!    `plateau_tolerance_bar` per second, the block pressures feed a one-parameter RLS whose θ is
 //!    the plateau `P∞` (an exponentially weighted mean). At the plateau inflow equals leak:
 //!    `a · φ(P∞/Ps) = g_leak · ψ(P∞)`. With `a` and `g_leak` from phase 1 this gives
 //!    `φ(P∞/Ps)`, which [`model::inverse_flow_shape`] inverts to `r = P∞/Ps`, hence **Ps**.
 //!    Without a leak `r = 1` and `Ps = P∞` exactly. The volume (piston position) does not enter
-//!    an equilibrium, which is why the plateau, not the stroke, carries the supply. If the fill
-//!    never left choke, the plateau is a choked equilibrium `a = g_leak · ψ(P∞)` that does not
-//!    depend on Ps: the supply is then reported as not identifiable (`None`).
+//!    an equilibrium, which is why the plateau, not the stroke, carries the supply. If
+//!    `g_leak · ψ(P∞) ≥ a` the plateau is a choked equilibrium that does not depend on Ps, and
+//!    close to it φ is so flat that Ps is ill-conditioned: above `g_leak · ψ(P∞) / a = 0.8` the
+//!    supply is reported as not identifiable (`None`).
 //! 3. **Derived**: `g_in = a / Ps`; equivalent orifice and leak diameters
 //!    `d = √(4 g V0 √T / (π k R T Cf C1))` with the nominal Cf and V0 (the per-locomotive
 //!    ±5 % spread of Cf and V0 is not separable from the orifice area by any pressure-only
@@ -78,13 +86,19 @@ pub use rls::{Rls, RlsConfig, RlsError};
 
 use crate::params::{c1, circle_area, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
 use crate::report::EstimatorState;
-use crate::units::{Meters, PressureQ24};
+use crate::units::PressureQ24;
 use crate::TwinParams;
 
 /// Samples per regression block (0.1 s at 100 Hz).
 pub const BLOCK_SAMPLES: u8 = 10;
 /// Blocks per plateau-detection window (1 s).
 pub const WINDOW_BLOCKS: u8 = 10;
+/// Upper pressure cutoffs (bar abs) of the choked-fill windows, one RLS each (module docs).
+pub const FILL_CUTOFFS_BAR_ABS: [f32; 5] = [2.3, 2.9, 3.5, 4.1, 4.55];
+/// Number of choked-fill windows.
+pub const FILL_WINDOWS: usize = FILL_CUTOFFS_BAR_ABS.len();
+/// A plateau ends when the 1 s mean moves by more than this many plateau tolerances.
+pub const PLATEAU_EXIT_FACTOR: f32 = 4.0;
 /// Delay (blocks) between a fill regression and its use by the RLS.
 pub const FILL_DELAY_BLOCKS: usize = 4;
 
@@ -117,7 +131,7 @@ impl Default for EstimatorConfig {
             rate_noise_bar_s: 0.05,
             cusum_drift: 1.0,
             cusum_threshold: 8.0,
-            fill_warmup_blocks: 5,
+            fill_warmup_blocks: 8,
             plateau_tolerance_bar: 0.005,
             settle_blocks: 10,
         }
@@ -216,7 +230,8 @@ pub struct ReleaseEstimator {
     /// d² (mm²) per unit conductance (1/s): `4 V0 √T / (π k R T Cf C1) · 1e6`.
     mm2_per_conductance: f32,
     nominal_supply_abs: f32,
-    fill: Rls<2>,
+    fills: [Rls<2>; FILL_WINDOWS],
+    selected: usize,
     plateau: Rls<1>,
     phase: Phase,
     in_release: bool,
@@ -248,22 +263,23 @@ impl ReleaseEstimator {
             return Err(EstimatorError::Config);
         }
         nominal.validate().map_err(|_| EstimatorError::Config)?;
-        let gain_per_m2 = KAPPA * GAS_CONSTANT * libm::sqrt(TEMPERATURE_K) * nominal.discharge_coeff * c1()
-            / nominal.dead_volume_m3;
+        let gain_per_m2 =
+            KAPPA * GAS_CONSTANT * libm::sqrt(TEMPERATURE_K) * nominal.discharge_coeff * c1() / nominal.dead_volume_m3;
         // d² = 4 A / π with A = g / gain; in mm².
         let mm2_per_conductance = (4.0 / (core::f64::consts::PI * gain_per_m2) * 1e6) as f32;
         // Sanity: the nominal orifice maps back to itself (init-time only).
         debug_assert!({
             let g = gain_per_m2 * circle_area(nominal.orifice);
             let d = libm::sqrt(g * f64::from(mm2_per_conductance));
-            (d - Meters::mm(nominal.orifice)).abs() < 1e-3
+            (d - nominal.orifice.mm()).abs() < 1e-3
         });
         let pending = [Regression { phi: [0.0; 2], y: 0.0 }; FILL_DELAY_BLOCKS];
         Ok(Self {
             config,
             mm2_per_conductance,
             nominal_supply_abs: nominal.supply.to_abs_bar() as f32,
-            fill: Rls::new(config.fill_rls, [0.0; 2])?,
+            fills: [Rls::new(config.fill_rls, [0.0; 2])?; FILL_WINDOWS],
+            selected: FILL_WINDOWS - 1,
             plateau: Rls::new(config.plateau_rls, [0.0])?,
             phase: Phase::Idle,
             in_release: false,
@@ -285,7 +301,10 @@ impl ReleaseEstimator {
 
     /// Forgets the current release: all models back to their initial state.
     pub fn reset(&mut self) {
-        self.fill.reset();
+        for f in &mut self.fills {
+            f.reset();
+        }
+        self.selected = FILL_WINDOWS - 1;
         self.plateau.reset();
         self.phase = Phase::Idle;
         self.in_release = false;
@@ -303,9 +322,19 @@ impl ReleaseEstimator {
         self.last_error = None;
     }
 
-    /// The choked-fill RLS (for tests and reports).
-    pub fn fill_rls(&self) -> &Rls<2> {
-        &self.fill
+    /// The choked-fill RLS of window `i` (cutoff `FILL_CUTOFFS_BAR_ABS[i]`), if it exists.
+    pub fn fill_rls(&self, i: usize) -> Option<&Rls<2>> {
+        self.fills.get(i)
+    }
+
+    /// The window whose estimates are reported (module docs).
+    pub fn selected_window(&self) -> usize {
+        self.selected
+    }
+
+    fn fill(&self) -> &Rls<2> {
+        // `selected` is always < FILL_WINDOWS; fall back to the last window defensively.
+        self.fills.get(self.selected).unwrap_or(&self.fills[FILL_WINDOWS - 1])
     }
 
     /// The plateau RLS (for tests and reports).
@@ -384,14 +413,23 @@ impl ReleaseEstimator {
     }
 
     fn fill_block(&mut self, obs: &BlockObservation) -> Result<(), EstimatorError> {
+        let top = FILL_CUTOFFS_BAR_ABS[FILL_WINDOWS - 1];
+        if obs.mid_pressure > top {
+            // Above the last cutoff: the choked fill is over (the delayed blocks are all below it).
+            self.flush_pending()?;
+            self.phase = Phase::Transit;
+            return Ok(());
+        }
         let reg = ChokedFillModel.regress(obs);
         self.fill_blocks = self.fill_blocks.saturating_add(1);
         if self.fill_blocks > self.config.fill_warmup_blocks {
-            let innovation = reg.y - self.fill.predict(&reg.phi);
-            let z = -innovation / self.config.rate_noise_bar_s;
-            self.cusum = (self.cusum + z - self.config.cusum_drift).max(0.0);
-            if !(self.cusum <= self.config.cusum_threshold) {
-                // The inlet left choke or the piston broke away: drop the delayed blocks.
+            let top_rls = &self.fills[FILL_WINDOWS - 1];
+            let innovation = reg.y - top_rls.predict(&reg.phi);
+            let spread = dot2(&reg.phi, &mat_vec2(top_rls.covariance(), &reg.phi));
+            let sigma = self.config.rate_noise_bar_s * libm::sqrtf(1.0 + spread.max(0.0));
+            self.cusum = (self.cusum - innovation / sigma - self.config.cusum_drift).max(0.0);
+            if self.cusum.is_nan() || self.cusum > self.config.cusum_threshold {
+                // The piston broke away (or the inlet left choke early): drop the delayed blocks.
                 self.phase = Phase::Transit;
                 self.pending_len = 0;
                 return Ok(());
@@ -402,11 +440,38 @@ impl ReleaseEstimator {
             let oldest = self.pending[0];
             self.pending.copy_within(1.., 0);
             self.pending_len -= 1;
-            result = self.fill.update(&oldest.phi, oldest.y).map(|_| ()).map_err(EstimatorError::from);
+            result = self.learn(&oldest);
         }
         if let Some(slot) = self.pending.get_mut(self.pending_len) {
             *slot = reg;
             self.pending_len += 1;
+        }
+        result
+    }
+
+    /// Feeds the delayed regressions that are still pending (end of the fill by cutoff).
+    fn flush_pending(&mut self) -> Result<(), EstimatorError> {
+        let mut result = Ok(());
+        for i in 0..self.pending_len.min(FILL_DELAY_BLOCKS) {
+            let reg = self.pending[i];
+            result = result.and(self.learn(&reg));
+        }
+        self.pending_len = 0;
+        result
+    }
+
+    /// One fill regression into every window whose cutoff lies above its pressure.
+    fn learn(&mut self, reg: &Regression<2>) -> Result<(), EstimatorError> {
+        // φ = [1, −ψ(p)] and ψ is increasing, so the window test needs the pressure: ψ = p once
+        // choked (p ≥ 1.9 bar abs) and all cutoffs are above that.
+        let pressure = -reg.phi[1];
+        let mut result = Ok(());
+        for (rls, &cutoff) in self.fills.iter_mut().zip(&FILL_CUTOFFS_BAR_ABS) {
+            if pressure <= cutoff {
+                if let Err(e) = rls.update(&reg.phi, reg.y) {
+                    result = Err(EstimatorError::Rls(e));
+                }
+            }
         }
         result
     }
@@ -418,23 +483,18 @@ impl ReleaseEstimator {
             let mean = self.window_sum * (1.0 / WINDOW_BLOCKS as f32);
             self.window_sum = 0.0;
             self.window_len = 0;
-            let settled = self.prev_window_mean.is_some_and(|m| (mean - m).abs() < self.config.plateau_tolerance_bar);
+            let change = self.prev_window_mean.map(|m| (mean - m).abs());
             self.prev_window_mean = Some(mean);
-            if settled {
-                if self.phase != Phase::Plateau {
-                    // Keep the fill phase alive under a choked plateau: its model still holds.
-                    if self.phase == Phase::Transit {
-                        self.phase = Phase::Plateau;
-                    }
-                    if self.plateau_blocks == 0 {
-                        self.plateau.reset();
-                    }
+            let tolerance = self.config.plateau_tolerance_bar;
+            if self.plateau_blocks == 0 && change.is_some_and(|c| c < tolerance) {
+                self.plateau.reset();
+                self.plateau_blocks = 1;
+                // A choked fill keeps its phase under a choked plateau: its model still holds.
+                if self.phase == Phase::Transit {
+                    self.phase = Phase::Plateau;
                 }
-                if self.plateau_blocks == 0 {
-                    self.plateau_blocks = 1;
-                }
-            } else if self.plateau_blocks > 0 {
-                // The pressure moved again: start the plateau over when it settles next.
+            } else if self.plateau_blocks > 0 && change.is_some_and(|c| c > PLATEAU_EXIT_FACTOR * tolerance) {
+                // The pressure moved again (hysteresis: noise alone does not leave the plateau).
                 self.plateau_blocks = 0;
                 if self.phase == Phase::Plateau {
                     self.phase = Phase::Transit;
@@ -451,27 +511,39 @@ impl ReleaseEstimator {
         Ok(())
     }
 
-    /// Supply from the plateau equilibrium `a · φ(P∞/Ps) = g_leak · ψ(P∞)` (module docs, 2.).
+    /// Supply from the plateau equilibrium `a · φ(P∞/Ps) = g_leak · ψ(P∞)` (module docs, 2.),
+    /// with the fill window chosen from Ps ≥ P∞ and then refined once with the new Ps.
     fn update_supply(&mut self) {
-        if self.phase == Phase::ChokedFill {
-            // Choked plateau: the equilibrium does not involve Ps.
-            self.supply_abs = None;
-            return;
-        }
         let p_inf = self.plateau.theta()[0];
-        let [a, g_leak] = *self.fill.theta();
-        let target = if self.fill.updates() > 0 && a > 0.0 { g_leak * model::leak_shape(p_inf) / a } else { 0.0 };
-        let ratio = model::inverse_flow_shape(target);
-        self.supply_abs = Some(p_inf / ratio);
+        let mut supply = p_inf;
+        self.supply_abs = None;
+        for _ in 0..2 {
+            self.selected = select_window(supply);
+            let fill = self.fill();
+            let [a, g_leak] = *fill.theta();
+            if fill.updates() == 0 || a.is_nan() || a <= 0.0 {
+                // No fill data: only the plateau; without a leak estimate assume none.
+                self.supply_abs = Some(p_inf);
+                return;
+            }
+            let target = g_leak * model::leak_shape(p_inf) / a;
+            if target.is_nan() || target >= CHOKED_PLATEAU_TARGET {
+                // Choked plateau: Ps does not enter the equilibrium.
+                return;
+            }
+            supply = p_inf / model::inverse_flow_shape(target);
+            self.supply_abs = Some(supply);
+        }
     }
 
     /// The current estimates.
     pub fn estimates(&self) -> Estimates {
-        if !self.in_release && self.fill.updates() == 0 {
+        if !self.in_release && self.fill().updates() == 0 {
             return Estimates::NONE;
         }
-        let fill_known = self.fill.updates() > 0;
-        let [a, g_leak] = *self.fill.theta();
+        let fill = self.fill();
+        let fill_known = fill.updates() > 0;
+        let [a, g_leak] = *fill.theta();
         let diameter = |g: f32| libm::sqrtf(g.max(0.0) * self.mm2_per_conductance);
         let supply = self.supply_abs.filter(|s| s.is_finite() && *s > 0.0);
         let orifice = (fill_known && a > 0.0).then(|| diameter(a / supply.unwrap_or(self.nominal_supply_abs)));
@@ -493,12 +565,33 @@ impl ReleaseEstimator {
     pub fn state(&self) -> EstimatorState {
         if !self.in_release {
             EstimatorState::Idle
-        } else if self.fill.guard_active() || self.plateau.guard_active() {
+        } else if self.fills.iter().any(Rls::guard_active) || self.plateau.guard_active() {
             EstimatorState::Frozen
-        } else if self.plateau_blocks > self.config.settle_blocks && self.fill.updates() >= self.config.settle_blocks {
+        } else if self.plateau_blocks > self.config.settle_blocks && self.fill().updates() >= self.config.settle_blocks
+        {
             EstimatorState::Settled
         } else {
             EstimatorState::Converging
         }
     }
+}
+
+/// `g_leak ψ(P∞) / a` at or above which Ps counts as not identifiable: φ(r) ≥ 0.8 means
+/// r ≲ 0.81, where φ is so flat near choke that noise in `a` and `g_leak` moves Ps by bars.
+const CHOKED_PLATEAU_TARGET: f32 = 0.8;
+
+/// The highest fill window whose cutoff is choked for a supply of `supply_abs` bar abs.
+fn select_window(supply_abs: f32) -> usize {
+    let limit = model::CRITICAL_RATIO * supply_abs;
+    FILL_CUTOFFS_BAR_ABS.iter().rposition(|&c| c <= limit).unwrap_or(0)
+}
+
+#[inline]
+fn dot2(a: &[f32; 2], b: &[f32; 2]) -> f32 {
+    a[0] * b[0] + a[1] * b[1]
+}
+
+#[inline]
+fn mat_vec2(m: &[[f32; 2]; 2], v: &[f32; 2]) -> [f32; 2] {
+    [dot2(&m[0], v), dot2(&m[1], v)]
 }

@@ -86,7 +86,8 @@ pub fn leak_shape(pressure: f32) -> f32 {
 /// The ratio `r ∈ [0.528, 1]` with `flow_shape(r) = target`, by bisection (φ is monotone
 /// decreasing there). `target ≤ 0` gives 1, `target ≥ 1` gives 0.528.
 pub fn inverse_flow_shape(target: f32) -> f32 {
-    if !(target > 0.0) {
+    // NaN lands here too (not > 0): no leak information, r = 1.
+    if target.is_nan() || target <= 0.0 {
         return 1.0;
     }
     if target >= 1.0 {

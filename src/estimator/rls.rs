@@ -191,6 +191,7 @@ impl<const N: usize> Rls<N> {
                 p[i][j] -= gain[i] * p_phi[j];
             }
         }
+        #[allow(clippy::needless_range_loop)] // (i, j) and (j, i) of the same matrix
         for i in 0..N {
             for j in (i + 1)..N {
                 let m = 0.5 * (p[i][j] + p[j][i]);

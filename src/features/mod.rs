@@ -12,6 +12,7 @@
 pub mod physics;
 pub mod stats;
 
+use crate::estimator::Estimates;
 use crate::monitor::MonitorStep;
 use crate::sensor::SensorFault;
 use crate::twin::SAMPLE_PERIOD_S;
@@ -19,8 +20,16 @@ use crate::units::PressureQ24;
 pub use physics::{PhaseTracker, N_PHYSICS, PHYSICS_NAMES};
 pub use stats::{SignalStats, N_STATS, STAT_NAMES};
 
-/// Length of [`FeatureExtractor::ours`]: the physics features plus residual mean and RMS.
-pub const N_OURS: usize = N_PHYSICS + 2;
+/// Number of online-estimator parameters in [`FeatureExtractor::theta`].
+pub const N_THETA: usize = 4;
+
+/// Names of [`FeatureExtractor::theta`], in order.
+pub const THETA_NAMES: [&str; N_THETA] =
+    ["inflow_rate_bar_s", "leak_conductance_per_s", "plateau_bar_g", "supply_bar_g"];
+
+/// Length of [`FeatureExtractor::ours`]: the physics features, residual mean and RMS, and the
+/// online estimator's parameters.
+pub const N_OURS: usize = N_PHYSICS + 2 + N_THETA;
 
 /// Names of [`FeatureExtractor::ours`], in order.
 pub const OURS_NAMES: [&str; N_OURS] = {
@@ -32,6 +41,11 @@ pub const OURS_NAMES: [&str; N_OURS] = {
     }
     names[N_PHYSICS] = "residual_mean";
     names[N_PHYSICS + 1] = "residual_rms";
+    let mut k = 0;
+    while k < N_THETA {
+        names[N_PHYSICS + 2 + k] = THETA_NAMES[k];
+        k += 1;
+    }
     names
 };
 
@@ -44,6 +58,8 @@ pub struct FeatureExtractor {
     samples: u32,
     faulty_samples: u32,
     last_fault: Option<SensorFault>,
+    seen_fault: Option<SensorFault>,
+    theta: [f64; N_THETA],
 }
 
 /// Bar per Q24 LSB.
@@ -67,6 +83,18 @@ impl FeatureExtractor {
             self.reset();
         }
         self.push(step.samples_since_release, step.measured, step.residual_q24);
+        self.set_estimates(&step.estimates);
+    }
+
+    /// Records the online estimator's current parameters (unknown ones read 0).
+    pub fn set_estimates(&mut self, e: &Estimates) {
+        let v = |x: Option<f32>| x.filter(|v| v.is_finite()).map_or(0.0, f64::from);
+        self.theta = [v(e.inflow_rate_bar_s), v(e.leak_conductance_per_s), v(e.plateau_bar_g), v(e.supply_bar_g)];
+    }
+
+    /// The online estimator's parameters ([`THETA_NAMES`]), 0 where not identified yet.
+    pub fn theta(&self) -> [f64; N_THETA] {
+        self.theta
     }
 
     /// Adds the sample taken `index` samples after the release command: the measured pressure
@@ -85,6 +113,7 @@ impl FeatureExtractor {
             Err(fault) => {
                 self.faulty_samples = self.faulty_samples.saturating_add(1);
                 self.last_fault = Some(fault);
+                self.seen_fault = Some(fault);
                 self.phase.push(t, None);
             }
         }
@@ -103,6 +132,11 @@ impl FeatureExtractor {
     /// The fault of the latest sample, if it was one.
     pub fn last_fault(&self) -> Option<SensorFault> {
         self.last_fault
+    }
+
+    /// The most recent sensor fault of this release, even if later samples were valid.
+    pub fn seen_fault(&self) -> Option<SensorFault> {
+        self.seen_fault
     }
 
     /// Seconds since the release command (time of the latest sample).
@@ -132,6 +166,7 @@ impl FeatureExtractor {
         let r = self.residual.values();
         v[N_PHYSICS] = r[0];
         v[N_PHYSICS + 1] = r[6];
+        v[N_PHYSICS + 2..].copy_from_slice(&self.theta);
         v
     }
 }
@@ -168,7 +203,11 @@ mod tests {
         let v = fx.ours();
         assert!((v[12] - 0.79).abs() < 0.02, "choked filling slope {}", v[12]);
         assert!((v[25] - 1.0).abs() < 0.02 && (v[26] - 1.0).abs() < 0.03, "{} {}", v[25], v[26]);
-        assert_eq!(OURS_NAMES[N_OURS - 1], "residual_rms");
+        assert_eq!(OURS_NAMES[N_PHYSICS + 1], "residual_rms");
+        assert_eq!(OURS_NAMES[N_OURS - 1], "supply_bar_g");
+        let theta = fx.theta();
+        assert!((theta[2] - 7.7).abs() < 0.02, "estimated plateau {}", theta[2]);
+        assert_eq!(v[N_PHYSICS + 2..], theta);
     }
 
     #[test]

@@ -22,7 +22,8 @@
 pub const LEVELS_BAR: [f64; 10] = [0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 7.4, 7.6];
 /// Pressure bands (bar g, `[lo, hi)`) whose least-squares filling slope is a feature. The
 /// first four lie below breakaway (fixed volume), the last three in the stroke.
-pub const BANDS_BAR: [(f64, f64); 7] = [(0.3, 1.0), (1.0, 2.0), (2.0, 3.0), (3.0, 3.6), (4.6, 5.4), (5.4, 6.2), (6.2, 7.0)];
+pub const BANDS_BAR: [(f64, f64); 7] =
+    [(0.3, 1.0), (1.0, 2.0), (2.0, 3.0), (3.0, 3.6), (4.6, 5.4), (5.4, 6.2), (6.2, 7.0)];
 /// Samples per smoothing block (0.25 s at 100 Hz).
 pub const BLOCK_SAMPLES: u32 = 25;
 /// Blocks spanned by the "current slope" (1 s).
@@ -168,7 +169,8 @@ impl PhaseTracker {
     }
 
     fn close_block(&mut self, p: f64, t: f64) {
-        let prev = if self.blocks_seen > 0 { Some((self.ring_p[self.ring_head], self.ring_t[self.ring_head])) } else { None };
+        let prev =
+            if self.blocks_seen > 0 { Some((self.ring_p[self.ring_head], self.ring_t[self.ring_head])) } else { None };
         for (level, cross) in LEVELS_BAR.iter().zip(self.cross.iter_mut()) {
             if cross.is_none() && p >= *level {
                 *cross = Some(match prev {
@@ -293,7 +295,7 @@ mod tests {
         let v = tr.values();
         assert!((v[0] - 59.99).abs() < 1e-9);
         assert!((v[2] - 1.25).abs() < 0.02, "t_1bar {}", v[2]); // 1 bar at 1.25 s
-        // A 0.25 s block straddles the knee: the interpolated crossing lags by < 0.1 s.
+                                                                // A 0.25 s block straddles the knee: the interpolated crossing lags by < 0.1 s.
         assert!((v[5] - 5.0).abs() < 0.1, "t_4bar {}", v[5]);
         assert!((v[8] - 20.0).abs() < 0.15, "t_7bar {}", v[8]); // block mean reaches 7 at the plateau
         assert_eq!(v[9], 59.99, "7.4 bar never reached: censored");

@@ -189,7 +189,9 @@ mod tests {
 
     #[test]
     fn matches_two_pass_definitions() {
-        let xs: Vec<f64> = (0..6000).map(|i| 7.7 - 7.0 * (-(i as f64) / 900.0).exp() + 0.01 * ((i * 7919 % 13) as f64 - 6.0)).collect();
+        let xs: Vec<f64> = (0..6000)
+            .map(|i| 7.7 - 7.0 * (-(i as f64) / 900.0).exp() + 0.01 * ((i * 7919 % 13) as f64 - 6.0))
+            .collect();
         let mut s = SignalStats::new();
         xs.iter().for_each(|&x| s.push(x));
         let v = s.values();

@@ -1,0 +1,129 @@
+//! `bench`: cost of the per-sample pipeline on the Cortex-M4F, in instructions.
+//!
+//! Run under `qemu-system-arm -icount shift=0` (the runner in .cargo/config.toml): every
+//! instruction advances the virtual clock by exactly 1 ns, and SysTick counts that clock at
+//! 25 MHz, so one SysTick count is 40 instructions. Each measured call is bracketed by two
+//! reads of the free-running SysTick counter (interrupts off); summing over thousands of calls
+//! makes the ±1-count quantisation negligible in the mean. A calibration loop of known length
+//! checks the conversion. Output: `key=value` lines on standard output, parsed by
+//! scripts/firmware-bench.sh.
+#![no_std]
+#![no_main]
+
+use cortex_m::peripheral::syst::SystClkSource;
+use cortex_m::peripheral::SYST;
+use pbm::classifier::diagnose;
+use pbm::features::FeatureExtractor;
+use pbm::{AdcCounts, Twin, TwinParams};
+use pbm_firmware::adc::ADC_TRACE;
+use pbm_firmware::console::exit;
+use pbm_firmware::pipeline::Pipeline;
+use pbm_firmware::{println, stack, time_driver};
+
+/// Instructions per SysTick count under `-icount shift=0` (1 ns each) at 25 MHz.
+const INSTR_PER_COUNT: u64 = 1_000_000_000 / time_driver::CORE_CLOCK_HZ as u64;
+const RELOAD: u32 = 0x00FF_FFFF;
+
+/// Mean, max and total of a series of measurements, instructions.
+#[derive(Default)]
+struct Stats {
+    n: u64,
+    total: u64,
+    max: u64,
+}
+
+impl Stats {
+    fn add(&mut self, instr: u64) {
+        self.n += 1;
+        self.total += instr;
+        self.max = self.max.max(instr);
+    }
+    fn mean(&self) -> u64 {
+        self.total.checked_div(self.n).unwrap_or(0)
+    }
+}
+
+/// Instructions spent in `f` (SysTick counts × 40, minus the bracket's own cost `overhead`).
+#[inline(always)]
+fn measure<R>(overhead: u64, f: impl FnOnce() -> R) -> (u64, R) {
+    let before = SYST::get_current();
+    let r = f();
+    let after = SYST::get_current();
+    let counts = u64::from(before.wrapping_sub(after) & RELOAD);
+    ((counts * INSTR_PER_COUNT).saturating_sub(overhead), r)
+}
+
+/// A loop of exactly `3 * n` instructions (subs, bne, nop).
+#[inline(never)]
+fn known_loop(n: u32) {
+    // SAFETY: register-only loop.
+    unsafe {
+        core::arch::asm!(
+            "1:",
+            "nop",
+            "subs {n}, {n}, #1",
+            "bne 1b",
+            n = inout(reg) n => _,
+            options(nomem, nostack),
+        );
+    }
+}
+
+#[cortex_m_rt::entry]
+fn main() -> ! {
+    stack::paint();
+    let Some(mut p) = cortex_m::Peripherals::take() else {
+        println!("bench: core peripherals already taken");
+        exit(false)
+    };
+    cortex_m::interrupt::disable();
+    p.SYST.set_clock_source(SystClkSource::Core);
+    p.SYST.set_reload(RELOAD);
+    p.SYST.clear_current();
+    p.SYST.disable_interrupt();
+    p.SYST.enable_counter();
+
+    // Calibration: the bracket alone, then 3 × 100 000 instructions.
+    let mut bracket = Stats::default();
+    for _ in 0..1000 {
+        bracket.add(measure(0, || ()).0);
+    }
+    let overhead = bracket.mean();
+    let (cal, ()) = measure(overhead, || known_loop(100_000));
+    println!("calibration_expected_instr=300000");
+    println!("calibration_measured_instr={cal}");
+    println!("bracket_overhead_instr={overhead}");
+
+    // The firmware's per-sample pipeline over the compiled-in trace.
+    let (Ok(mut pipeline), Ok(mut twin)) = (Pipeline::nominal(), Twin::new(&TwinParams::nominal())) else {
+        println!("bench: nominal parameters rejected");
+        exit(false)
+    };
+    let mut per_sample = Stats::default();
+    let mut twin_only = Stats::default();
+    let mut features_cost = Stats::default();
+    let mut features = FeatureExtractor::new();
+    let mut frames = 0usize;
+    for &code in ADC_TRACE.iter() {
+        let (instr, (step, outbox)) = measure(overhead, || pipeline.step(AdcCounts(code), true));
+        per_sample.add(instr);
+        frames += outbox.as_slice().len();
+        twin_only.add(measure(overhead, || twin.update(true)).0);
+        features_cost.add(measure(overhead, || features.update(&step)).0);
+    }
+    let (classify, verdict) = measure(overhead, || diagnose(&features));
+
+    println!("samples={}", per_sample.n);
+    println!("frames={frames}");
+    println!("pipeline_instr_per_sample_mean={}", per_sample.mean());
+    println!("pipeline_instr_per_sample_max={}", per_sample.max);
+    println!("twin_instr_per_sample_mean={}", twin_only.mean());
+    println!("twin_instr_per_sample_max={}", twin_only.max);
+    println!("features_instr_per_sample_mean={}", features_cost.mean());
+    println!("features_instr_per_sample_max={}", features_cost.max);
+    println!("classify_instr={classify}");
+    println!("verdict={verdict:?}");
+    println!("static_ram_bytes={}", stack::static_ram());
+    println!("peak_stack_bytes={}", stack::peak_used());
+    exit(true)
+}

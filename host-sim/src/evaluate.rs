@@ -1,0 +1,404 @@
+//! `host-sim evaluate`: accuracy and confusion matrices of the trained classifiers on the test
+//! split of a data set, accuracy of ours against time since the release command, optional
+//! leave-one-locomotive-out accuracy, JSON and SVG output.
+//!
+//! Every classifier is judged at the end of the trace (60 s); `ours_int8` runs the core's
+//! integer inference ([`pbm::classifier::QuantModel`]) on the model file written by `train`,
+//! and `core_compiled` is the verdict of the model compiled into the core
+//! ([`pbm::classifier::diagnose`]), including its 'cannot diagnose' rules.
+
+use crate::nn::Mlp;
+use crate::train::{
+    classes_of, dataset_features, read_mlp, read_quant, train_all, Kind, QuantParams, TraceFeatures, SNAPSHOT_TIMES_S,
+};
+use anyhow::{bail, Context, Result};
+use pbm::report::Verdict;
+use pbm::FaultClass;
+use plotters::prelude::*;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Options of `host-sim evaluate`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct EvaluateArgs {
+    /// Data set directory; rows with split `test` are evaluated.
+    pub dataset: PathBuf,
+    /// Directory of the models written by `host-sim train`.
+    #[arg(long, default_value = "models")]
+    pub models: PathBuf,
+    /// Write the results as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write SVG plots (confusion matrices, accuracy vs time) into this directory.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Also run leave-one-locomotive-out for ours (retrains once per locomotive on all splits).
+    #[arg(long)]
+    pub lolo: bool,
+    /// Also print the confusion matrix of ours (int8) at every snapshot time.
+    #[arg(long)]
+    pub verbose: bool,
+    /// Seed for the leave-one-locomotive-out training.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+}
+
+/// Outcome of one classifier on one trace: a class index, or 'cannot diagnose'.
+pub type Outcome = Option<usize>;
+
+/// Accuracy and confusion matrix of one classifier.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Score {
+    /// Classifier name.
+    pub name: String,
+    /// Correct / total.
+    pub correct: usize,
+    /// Traces evaluated.
+    pub total: usize,
+    /// Traces with 'cannot diagnose'.
+    pub undiagnosed: usize,
+    /// `confusion[true][predicted]`; the last column counts 'cannot diagnose'.
+    pub confusion: Vec<Vec<usize>>,
+}
+
+impl Score {
+    /// Scores outcomes against truths (`n` classes).
+    pub fn new(name: &str, n: usize, truth: &[usize], outcome: &[Outcome]) -> Self {
+        let mut confusion = vec![vec![0; n + 1]; n];
+        for (&t, o) in truth.iter().zip(outcome) {
+            if let Some(row) = confusion.get_mut(t) {
+                row[o.unwrap_or(n).min(n)] += 1;
+            }
+        }
+        let correct = truth.iter().zip(outcome).filter(|(t, o)| **o == Some(**t)).count();
+        let undiagnosed = outcome.iter().filter(|o| o.is_none()).count();
+        Self { name: name.to_owned(), correct, total: truth.len(), undiagnosed, confusion }
+    }
+    /// Accuracy, %.
+    pub fn accuracy_pct(&self) -> f64 {
+        100.0 * self.correct as f64 / self.total.max(1) as f64
+    }
+}
+
+fn class_index(classes: &[FaultClass], c: FaultClass) -> Option<usize> {
+    classes.iter().position(|k| *k == c)
+}
+
+fn int8_outcome(q: &QuantParams, row: &[f64]) -> Outcome {
+    q.with_model(|m| m.classify(row).ok().map(|inf| inf.index))
+}
+
+/// Accuracy (%) of ours at each snapshot time, f64 and int8.
+pub fn accuracy_vs_time(
+    net: &Mlp,
+    q: &QuantParams,
+    classes: &[FaultClass],
+    data: &[TraceFeatures],
+) -> Vec<(f64, f64, f64)> {
+    SNAPSHOT_TIMES_S
+        .iter()
+        .enumerate()
+        .map(|(k, &t)| {
+            let (mut n, mut ok_f, mut ok_q) = (0usize, 0usize, 0usize);
+            for d in data {
+                let (Some(s), Some(truth)) = (d.snapshots.get(k), class_index(classes, d.class)) else { continue };
+                n += 1;
+                ok_f += usize::from(net.predict(s) == truth);
+                ok_q += usize::from(int8_outcome(q, s) == Some(truth));
+            }
+            let pct = |c: usize| 100.0 * c as f64 / n.max(1) as f64;
+            (t, pct(ok_f), pct(ok_q))
+        })
+        .collect()
+}
+
+/// Share (%) of traces whose int8 class is correct at every snapshot from `t` on, for the
+/// earliest such `t` ≤ `by_s` (i.e. diagnosed correctly and stably by `by_s`).
+pub fn stable_by(q: &QuantParams, classes: &[FaultClass], data: &[TraceFeatures], by_s: f64) -> f64 {
+    let last_k = SNAPSHOT_TIMES_S.iter().rposition(|&t| t <= by_s).unwrap_or(0);
+    let ok = data
+        .iter()
+        .filter(|d| {
+            let truth = class_index(classes, d.class);
+            let correct: Vec<bool> = d.snapshots.iter().map(|s| int8_outcome(q, s) == truth).collect();
+            (0..=last_k).any(|k| correct.get(k..).is_some_and(|c| !c.is_empty() && c.iter().all(|&b| b)))
+        })
+        .count();
+    100.0 * ok as f64 / data.len().max(1) as f64
+}
+
+/// Leave-one-locomotive-out accuracy of ours (f64 and int8) at the end of the trace.
+pub fn leave_one_locomotive_out(all: &[TraceFeatures], seed: u64) -> Result<Vec<(String, usize, f64, f64)>> {
+    let mut locos: Vec<String> = all.iter().map(|d| d.row.locomotive.clone()).collect();
+    locos.sort();
+    locos.dedup();
+    let mut out = Vec::new();
+    for loco in &locos {
+        let train: Vec<TraceFeatures> = all.iter().filter(|d| &d.row.locomotive != loco).cloned().collect();
+        let test: Vec<&TraceFeatures> = all.iter().filter(|d| &d.row.locomotive == loco).collect();
+        let trained = train_all_ours(&train, seed)?;
+        let (net, q, classes) = (&trained.0, &trained.1, &trained.2);
+        let (mut ok_f, mut ok_q) = (0, 0);
+        for d in &test {
+            let truth = class_index(classes, d.class);
+            let row = Kind::Ours.final_row(d);
+            ok_f += usize::from(Some(net.predict(&row)) == truth);
+            ok_q += usize::from(int8_outcome(q, &row) == truth);
+        }
+        let n = test.len().max(1) as f64;
+        out.push((loco.clone(), test.len(), 100.0 * ok_f as f64 / n, 100.0 * ok_q as f64 / n));
+    }
+    Ok(out)
+}
+
+fn train_all_ours(train: &[TraceFeatures], seed: u64) -> Result<(Mlp, QuantParams, Vec<FaultClass>)> {
+    let classes = classes_of(train);
+    let (net, _) = crate::train::train_kind(Kind::Ours, train, &classes, seed);
+    let calib: Vec<Vec<f64>> = train.iter().flat_map(|d| Kind::Ours.rows(d)).collect();
+    let q = crate::train::quantize(&net, &classes, &calib)?;
+    Ok((net, q, classes))
+}
+
+/// `host-sim evaluate`.
+pub fn run(a: &EvaluateArgs) -> Result<()> {
+    let test = dataset_features(&a.dataset, Some("test"))?;
+    let mut nets = Vec::new();
+    let mut classes: Option<Vec<FaultClass>> = None;
+    for k in Kind::ALL {
+        let (net, c) = read_mlp(&a.models.join(format!("{}.mlp", k.name())))?;
+        if classes.as_ref().is_some_and(|prev| prev != &c) {
+            bail!("models in {} disagree on the class list", a.models.display());
+        }
+        classes = Some(c);
+        nets.push((k, net));
+    }
+    let classes = classes.context("no models")?;
+    let quant = read_quant(&a.models.join("ours_int8.txt"))?;
+    if quant.classes != classes {
+        bail!("ours_int8.txt has other classes than the float models");
+    }
+    let truth: Vec<usize> = test
+        .iter()
+        .map(|d| {
+            class_index(&classes, d.class)
+                .with_context(|| format!("{}: class {} not in the models", d.row.file, d.class))
+        })
+        .collect::<Result<_>>()?;
+    let n = classes.len();
+    let mut scores = Vec::new();
+    for (k, net) in &nets {
+        let out: Vec<Outcome> = test.iter().map(|d| Some(net.predict(&k.final_row(d)))).collect();
+        scores.push(Score::new(k.name(), n, &truth, &out));
+    }
+    let ours_f: Vec<Outcome> = test.iter().map(|d| Some(nets[3].1.predict(&Kind::Ours.final_row(d)))).collect();
+    let ours_q: Vec<Outcome> = test.iter().map(|d| int8_outcome(&quant, &Kind::Ours.final_row(d))).collect();
+    scores.push(Score::new("ours_int8", n, &truth, &ours_q));
+    let core: Vec<Outcome> = test
+        .iter()
+        .map(|d| match d.core_verdict {
+            Verdict::Class { class, .. } => class_index(&classes, class),
+            Verdict::CannotDiagnose(_) => None,
+        })
+        .collect();
+    scores.push(Score::new("core_compiled", n, &truth, &core));
+    let agree = ours_f.iter().zip(&ours_q).filter(|(f, q)| f == q).count();
+    let curve = accuracy_vs_time(&nets[3].1, &quant, &classes, &test);
+    let stable10 = stable_by(&quant, &classes, &test, 10.0);
+    let lolo = if a.lolo {
+        let all = dataset_features(&a.dataset, None)?;
+        Some(leave_one_locomotive_out(&all, a.seed)?)
+    } else {
+        None
+    };
+
+    // Table.
+    println!("{} test traces of {}; classes: {}", test.len(), a.dataset.display(), labels(&classes).join(", "));
+    println!(
+        "{:<16} {:>9} {:>8} {:>12}   confusion (rows: truth; columns: predicted…, cannot diagnose)",
+        "classifier", "accuracy", "correct", "undiagnosed"
+    );
+    for s in &scores {
+        let conf: Vec<String> =
+            s.confusion.iter().map(|r| r.iter().map(|v| format!("{v:>3}")).collect::<Vec<_>>().join(" ")).collect();
+        println!(
+            "{:<16} {:>8.1}% {:>4}/{:<4} {:>11}   {}",
+            s.name,
+            s.accuracy_pct(),
+            s.correct,
+            s.total,
+            s.undiagnosed,
+            conf.join(" | ")
+        );
+    }
+    println!("paper (real data): raw 72 %, residual 81.2 %, theta 96 %");
+    println!("int8 vs f64 agreement at 60 s: {agree}/{}", test.len());
+    println!("accuracy of ours vs time since release (f64 / int8):");
+    for (t, f, q) in &curve {
+        println!("  t = {t:>5.2} s  {f:>6.1} %  {q:>6.1} %");
+    }
+    if a.verbose {
+        for (k, t) in SNAPSHOT_TIMES_S.iter().enumerate() {
+            let out: Vec<Outcome> =
+                test.iter().map(|d| d.snapshots.get(k).and_then(|s| int8_outcome(&quant, s))).collect();
+            let sc = Score::new("", n, &truth, &out);
+            let conf: Vec<String> = sc
+                .confusion
+                .iter()
+                .map(|r| r.iter().map(|v| format!("{v:>3}")).collect::<Vec<_>>().join(" "))
+                .collect();
+            println!("  t = {t:>5.2} s  int8 confusion {}", conf.join(" | "));
+        }
+    }
+    println!("traces diagnosed correctly (int8) and stably from some t <= 10 s on: {stable10:.1} %");
+    if let Some(l) = &lolo {
+        println!("leave-one-locomotive-out (ours, at 60 s; f64 / int8):");
+        for (loco, n, f, q) in l {
+            println!("  {loco:<10} {n:>5} traces  {f:>6.2} %  {q:>6.2} %");
+        }
+        let tot: usize = l.iter().map(|x| x.1).sum();
+        let wf: f64 = l.iter().map(|x| x.2 * x.1 as f64).sum::<f64>() / tot.max(1) as f64;
+        let wq: f64 = l.iter().map(|x| x.3 * x.1 as f64).sum::<f64>() / tot.max(1) as f64;
+        println!("  overall    {tot:>5} traces  {wf:>6.2} %  {wq:>6.2} %");
+    }
+    if let Some(path) = &a.json {
+        std::fs::write(path, json(&classes, &scores, agree, test.len(), &curve, stable10, lolo.as_deref()))
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    if let Some(dir) = &a.plot {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        plot_confusions(&dir.join("confusion.svg"), &classes, &scores)?;
+        plot_curve(&dir.join("accuracy_vs_time.svg"), &curve)?;
+        println!("plots written to {}", dir.display());
+    }
+    Ok(())
+}
+
+fn labels(classes: &[FaultClass]) -> Vec<&'static str> {
+    classes.iter().map(|c| c.label()).collect()
+}
+
+fn json(
+    classes: &[FaultClass],
+    scores: &[Score],
+    agree: usize,
+    total: usize,
+    curve: &[(f64, f64, f64)],
+    stable10: f64,
+    lolo: Option<&[(String, usize, f64, f64)]>,
+) -> String {
+    let mut s = String::from("{\n");
+    let quoted = |v: &[&str]| v.iter().map(|l| format!("\"{l}\"")).collect::<Vec<_>>().join(", ");
+    let _ = writeln!(s, "  \"classes\": [{}],", quoted(&labels(classes)));
+    let _ = writeln!(
+        s,
+        "  \"paper_reported_pct\": {{\"paper_raw\": 72.0, \"paper_residual\": 81.2, \"paper_theta\": 96.0}},"
+    );
+    let _ = writeln!(s, "  \"classifiers\": [");
+    for (i, sc) in scores.iter().enumerate() {
+        let rows: Vec<String> = sc
+            .confusion
+            .iter()
+            .map(|r| format!("[{}]", r.iter().map(|v| v.to_string()).collect::<Vec<_>>().join(", ")))
+            .collect();
+        let _ = writeln!(
+            s,
+            "    {{\"name\": \"{}\", \"accuracy_pct\": {:.3}, \"correct\": {}, \"total\": {}, \"undiagnosed\": {}, \"confusion\": [{}]}}{}",
+            sc.name,
+            sc.accuracy_pct(),
+            sc.correct,
+            sc.total,
+            sc.undiagnosed,
+            rows.join(", "),
+            if i + 1 < scores.len() { "," } else { "" }
+        );
+    }
+    let _ = writeln!(s, "  ],");
+    let _ = writeln!(s, "  \"int8_f64_agreement\": {{\"agree\": {agree}, \"total\": {total}}},");
+    let pts: Vec<String> =
+        curve.iter().map(|(t, f, q)| format!("{{\"t_s\": {t}, \"f64_pct\": {f:.3}, \"int8_pct\": {q:.3}}}")).collect();
+    let _ = writeln!(s, "  \"accuracy_vs_time\": [{}],", pts.join(", "));
+    let _ = write!(s, "  \"stable_correct_by_10s_pct\": {stable10:.3}");
+    if let Some(l) = lolo {
+        let rows: Vec<String> = l
+            .iter()
+            .map(|(loco, n, f, q)| {
+                format!("{{\"locomotive\": \"{loco}\", \"traces\": {n}, \"f64_pct\": {f:.3}, \"int8_pct\": {q:.3}}}")
+            })
+            .collect();
+        let _ = write!(s, ",\n  \"leave_one_locomotive_out\": [{}]", rows.join(", "));
+    }
+    s.push_str("\n}\n");
+    s
+}
+
+fn plot_err<E: std::fmt::Display>(e: E) -> anyhow::Error {
+    anyhow::anyhow!("plot: {e}")
+}
+
+fn plot_confusions(path: &Path, classes: &[FaultClass], scores: &[Score]) -> Result<()> {
+    let n = classes.len();
+    let cell = 34i32;
+    let panel_w = cell * (n as i32 + 1) + 150;
+    let panel_h = cell * n as i32 + 60;
+    let width = (panel_w * 3) as u32;
+    let height = (panel_h * scores.len().div_ceil(3) as i32) as u32;
+    let root = SVGBackend::new(path, (width, height)).into_drawing_area();
+    root.fill(&WHITE).map_err(plot_err)?;
+    for (k, sc) in scores.iter().enumerate() {
+        let (ox, oy) = ((k % 3) as i32 * panel_w + 130, (k / 3) as i32 * panel_h + 30);
+        let title = format!("{} {:.1} %", sc.name, sc.accuracy_pct());
+        root.draw(&Text::new(title, (ox - 120, oy - 22), ("sans-serif", 14))).map_err(plot_err)?;
+        for (t, row) in sc.confusion.iter().enumerate() {
+            let total = row.iter().sum::<usize>().max(1) as f64;
+            root.draw(&Text::new(classes[t].label(), (ox - 120, oy + t as i32 * cell + 10), ("sans-serif", 11)))
+                .map_err(plot_err)?;
+            for (p, &v) in row.iter().enumerate() {
+                let frac = v as f64 / total;
+                let shade = (255.0 * (1.0 - frac)) as u8;
+                let color = if p == t { RGBColor(shade, 255, shade) } else { RGBColor(255, shade, shade) };
+                let (x0, y0) = (ox + p as i32 * cell, oy + t as i32 * cell);
+                root.draw(&Rectangle::new([(x0, y0), (x0 + cell - 2, y0 + cell - 2)], color.filled()))
+                    .map_err(plot_err)?;
+                root.draw(&Text::new(v.to_string(), (x0 + 6, y0 + 10), ("sans-serif", 11))).map_err(plot_err)?;
+            }
+        }
+    }
+    root.present().map_err(plot_err)
+}
+
+fn plot_curve(path: &Path, curve: &[(f64, f64, f64)]) -> Result<()> {
+    let root = SVGBackend::new(path, (720, 420)).into_drawing_area();
+    root.fill(&WHITE).map_err(plot_err)?;
+    let lo = curve.iter().map(|c| c.1.min(c.2)).fold(100.0, f64::min).floor().max(0.0);
+    let mut chart = ChartBuilder::on(&root)
+        .caption("ours: accuracy vs time since release command", ("sans-serif", 18))
+        .margin(12)
+        .x_label_area_size(36)
+        .y_label_area_size(48)
+        .build_cartesian_2d(0.0..60.0, lo..100.5)
+        .map_err(plot_err)?;
+    chart.configure_mesh().x_desc("t since release command, s").y_desc("accuracy, %").draw().map_err(plot_err)?;
+    chart
+        .draw_series(LineSeries::new(curve.iter().map(|c| (c.0, c.1)), &BLUE))
+        .map_err(plot_err)?
+        .label("f64")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], BLUE));
+    chart
+        .draw_series(LineSeries::new(curve.iter().map(|c| (c.0, c.2)), &RED))
+        .map_err(plot_err)?
+        .label("int8")
+        .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED));
+    chart.configure_series_labels().border_style(BLACK).background_style(WHITE).draw().map_err(plot_err)?;
+    root.present().map_err(plot_err)
+}
+
+/// Trains on `train` and scores ours on `test` at the end of the trace (used by tests).
+pub fn quick_score(train: &[TraceFeatures], test: &[TraceFeatures], seed: u64) -> Result<f64> {
+    let trained = train_all(train, seed)?;
+    let ours = trained.models.iter().find(|m| m.0 == Kind::Ours).context("ours")?;
+    let ok = test
+        .iter()
+        .filter(|d| Some(ours.1.predict(&Kind::Ours.final_row(d))) == class_index(&trained.classes, d.class))
+        .count();
+    Ok(100.0 * ok as f64 / test.len().max(1) as f64)
+}

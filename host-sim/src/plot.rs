@@ -1,0 +1,101 @@
+//! SVG plots of a replayed trace: measured vs twin pressure, and the residual.
+
+use anyhow::{anyhow, Result};
+use plotters::prelude::*;
+use std::path::Path;
+
+/// The series of one replay plot (all slices of equal length; NaN marks a missing point,
+/// e.g. a sensor-fault sample, and breaks the line).
+#[derive(Debug, Clone, Copy)]
+pub struct ReplayPlot<'a> {
+    /// Title above the upper panel.
+    pub title: &'a str,
+    /// Time, s.
+    pub t_s: &'a [f64],
+    /// Measured pressure, bar g.
+    pub measured_bar: &'a [f64],
+    /// Twin pressure, bar g.
+    pub twin_bar: &'a [f64],
+    /// Measured − twin, bar.
+    pub residual_bar: &'a [f64],
+}
+
+fn range(values: &[f64], min_span: f64) -> std::ops::Range<f64> {
+    let (lo, hi) = values
+        .iter()
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    if !(lo.is_finite() && hi.is_finite()) {
+        return -min_span..min_span;
+    }
+    let pad = ((hi - lo) * 0.05).max(min_span * 0.5);
+    (lo - pad)..(hi + pad)
+}
+
+/// Runs of consecutive finite points, so that gaps (NaN) break the line.
+fn runs<'a>(t: &'a [f64], y: &'a [f64]) -> Vec<Vec<(f64, f64)>> {
+    let mut out = Vec::new();
+    let mut cur = Vec::new();
+    for (&a, &b) in t.iter().zip(y) {
+        if a.is_finite() && b.is_finite() {
+            cur.push((a, b));
+        } else if !cur.is_empty() {
+            out.push(std::mem::take(&mut cur));
+        }
+    }
+    if !cur.is_empty() {
+        out.push(cur);
+    }
+    out
+}
+
+/// Writes the plot as SVG to `path`.
+pub fn write_replay_svg(path: &Path, p: &ReplayPlot<'_>) -> Result<()> {
+    let err = |e: &dyn std::fmt::Display| anyhow!("plot {}: {e}", path.display());
+    let root = SVGBackend::new(path, (1000, 720)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| err(&e))?;
+    let (upper, lower) = root.split_vertically(440);
+    let t_range = range(p.t_s, 1.0);
+    let t_range = t_range.start.max(0.0)..t_range.end;
+
+    let mut chart = ChartBuilder::on(&upper)
+        .caption(p.title, ("sans-serif", 18))
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(50)
+        .build_cartesian_2d(t_range.clone(), range(&[p.measured_bar, p.twin_bar].concat(), 0.5))
+        .map_err(|e| err(&e))?;
+    chart.configure_mesh().x_desc("t, s").y_desc("pressure, bar g").draw().map_err(|e| err(&e))?;
+    for (i, run) in runs(p.t_s, p.measured_bar).into_iter().enumerate() {
+        let s = chart.draw_series(LineSeries::new(run, BLUE)).map_err(|e| err(&e))?;
+        if i == 0 {
+            s.label("measured").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
+        }
+    }
+    for (i, run) in runs(p.t_s, p.twin_bar).into_iter().enumerate() {
+        let s = chart.draw_series(LineSeries::new(run, RED)).map_err(|e| err(&e))?;
+        if i == 0 {
+            s.label("twin").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
+        }
+    }
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::LowerRight)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| err(&e))?;
+
+    let mut chart = ChartBuilder::on(&lower)
+        .margin(10)
+        .x_label_area_size(30)
+        .y_label_area_size(50)
+        .build_cartesian_2d(t_range, range(p.residual_bar, 0.05))
+        .map_err(|e| err(&e))?;
+    chart.configure_mesh().x_desc("t, s").y_desc("residual, bar").draw().map_err(|e| err(&e))?;
+    for run in runs(p.t_s, p.residual_bar) {
+        chart.draw_series(LineSeries::new(run, BLACK)).map_err(|e| err(&e))?;
+    }
+    root.present().map_err(|e| err(&e))?;
+    Ok(())
+}

@@ -1,0 +1,698 @@
+//! `host-sim train`: the paper's three classifiers (SPEC §6) and this project's classifier,
+//! trained on a data set (SPEC §7), then the latter quantized to int8 for the core.
+//!
+//! Features come from the core only: every trace is replayed sample by sample through
+//! [`pbm::monitor::Monitor`] (twin, residual, online estimator) and
+//! [`pbm::features::FeatureExtractor`]. ADC traces are used as recorded; `p_bar` traces go
+//! through the ideal ADC map first, so both kinds meet the same integer front end.
+//!
+//! | classifier | inputs | network |
+//! |---|---|---|
+//! | `paper_raw` | 21 statistics of the measured pressure over the whole trace | 8×8 sigmoid, paper protocol |
+//! | `paper_residual` | 21 statistics of measured − nominal twin | 8×8 sigmoid, paper protocol |
+//! | `paper_theta` | θ of the online estimator at the end of the trace (inflow rate, leak conductance, plateau, supply) | 8×8 sigmoid, paper protocol |
+//! | `ours` | [`pbm::features::OURS_NAMES`] at [`SNAPSHOT_TIMES_S`] since the release command | 32×32 ReLU |
+//!
+//! The paper fits θ = (K, B, σ0, σ1) per trace by batch least squares; no batch fit exists in
+//! this project yet, so `paper_theta` uses the parameters of the online estimator (the fault
+//! classes of SPEC §4 change orifice, leak and supply, not the spring and friction θ).
+//!
+//! `ours` is trained on snapshots of the features at several times since the release command,
+//! with the time itself an input, so one network diagnoses partial and complete releases.
+
+use crate::dataset::{read_manifest, trace_path, ManifestRow};
+use crate::nn::{self, Activation, Mlp, TrainConfig, TrainLog};
+use crate::trace::{read_trace, Samples};
+use anyhow::{bail, Context, Result};
+use pbm::classifier::{QuantLayer, QuantModel};
+use pbm::features::{FeatureExtractor, N_OURS, N_STATS, N_THETA};
+use pbm::monitor::Monitor;
+use pbm::sensor::adc_from_bar;
+use pbm::units::{AdcCounts, BarG};
+use pbm::{FaultClass, TwinParams};
+use rayon::prelude::*;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Times since the release command (s) at which `ours` sees the features, in training and in
+/// the accuracy-versus-time evaluation. The last is the end of a 60 s trace.
+pub const SNAPSHOT_TIMES_S: [f64; 18] =
+    [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 12.0, 15.0, 20.0, 25.0, 30.0, 40.0, 50.0, 59.99];
+
+/// Options of `host-sim train`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct TrainArgs {
+    /// Data set directory (manifest.csv + traces); rows with split `train` are used.
+    pub dataset: PathBuf,
+    /// Directory for the trained models (created).
+    #[arg(long, default_value = "models")]
+    pub out: PathBuf,
+    /// Seed of initialisation, validation split and shuffling: same seed, same models.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Also write the int8 model as Rust source for the core (e.g. src/classifier/model_weights.rs).
+    #[arg(long)]
+    pub export_rs: Option<PathBuf>,
+    /// Also write golden vectors (features → int8 logits, class) for the exported model.
+    #[arg(long)]
+    pub golden: Option<PathBuf>,
+}
+
+/// Everything a classifier needs from one trace.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TraceFeatures {
+    /// Manifest row.
+    pub row: ManifestRow,
+    /// True class.
+    pub class: FaultClass,
+    /// 21 statistics of the measured pressure over the whole trace.
+    pub raw: [f64; N_STATS],
+    /// 21 statistics of the residual over the whole trace.
+    pub residual: [f64; N_STATS],
+    /// Online estimator parameters at the end of the trace.
+    pub theta: [f64; N_THETA],
+    /// `ours` features at each of [`SNAPSHOT_TIMES_S`] that the trace reaches.
+    pub snapshots: Vec<[f64; N_OURS]>,
+    /// The core's verdict (compiled-in model) at the end of the trace.
+    pub core_verdict: pbm::report::Verdict,
+}
+
+/// Replays one trace through the core and collects its features.
+pub fn trace_features(dir: &Path, row: &ManifestRow) -> Result<TraceFeatures> {
+    let class =
+        FaultClass::from_label(&row.label).with_context(|| format!("{}: unknown label `{}`", row.file, row.label))?;
+    let trace = read_trace(&trace_path(dir, row)).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let adc: Vec<AdcCounts> = match &trace.samples {
+        Samples::Adc(v) => v.iter().map(|&c| AdcCounts(c)).collect(),
+        Samples::Bar(v) => v.iter().map(|&p| adc_from_bar(BarG(p))).collect(),
+    };
+    let mut monitor = Monitor::new(&TwinParams::nominal()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut fx = FeatureExtractor::new();
+    let snap_index: Vec<usize> = SNAPSHOT_TIMES_S.iter().map(|t| (t * 100.0_f64).round() as usize).collect();
+    let mut snapshots = Vec::with_capacity(snap_index.len());
+    for (i, &c) in adc.iter().enumerate() {
+        fx.update(&monitor.update(c, true));
+        if snap_index.get(snapshots.len()) == Some(&i) {
+            snapshots.push(fx.ours());
+        }
+    }
+    Ok(TraceFeatures {
+        row: row.clone(),
+        class,
+        raw: fx.raw_stats(),
+        residual: fx.residual_stats(),
+        theta: fx.theta(),
+        snapshots,
+        core_verdict: pbm::classifier::diagnose(&fx),
+    })
+}
+
+/// Features of every manifest row whose split is `split` (all rows for `None`), in manifest
+/// order, computed in parallel.
+pub fn dataset_features(dir: &Path, split: Option<&str>) -> Result<Vec<TraceFeatures>> {
+    let rows = read_manifest(dir).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let rows: Vec<ManifestRow> = rows.into_iter().filter(|r| split.is_none_or(|s| r.split == s)).collect();
+    if rows.is_empty() {
+        bail!("{}: no traces with split {:?}", dir.display(), split.unwrap_or("any"));
+    }
+    rows.par_iter().map(|r| trace_features(dir, r)).collect()
+}
+
+/// The classes present, in code order.
+pub fn classes_of(data: &[TraceFeatures]) -> Vec<FaultClass> {
+    let mut c: Vec<FaultClass> = data.iter().map(|d| d.class).collect();
+    c.sort();
+    c.dedup();
+    c
+}
+
+/// Which input a classifier reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// Paper: statistics of the measured pressure.
+    PaperRaw,
+    /// Paper: statistics of the residual.
+    PaperResidual,
+    /// Paper: twin parameters θ.
+    PaperTheta,
+    /// This project: online features over time.
+    Ours,
+}
+
+impl Kind {
+    /// All classifiers, in report order.
+    pub const ALL: [Self; 4] = [Self::PaperRaw, Self::PaperResidual, Self::PaperTheta, Self::Ours];
+
+    /// File stem and report name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::PaperRaw => "paper_raw",
+            Self::PaperResidual => "paper_residual",
+            Self::PaperTheta => "paper_theta",
+            Self::Ours => "ours_f64",
+        }
+    }
+
+    /// Input rows of one trace: one for the paper's classifiers, one per snapshot for ours.
+    pub fn rows(self, d: &TraceFeatures) -> Vec<Vec<f64>> {
+        match self {
+            Self::PaperRaw => vec![d.raw.to_vec()],
+            Self::PaperResidual => vec![d.residual.to_vec()],
+            Self::PaperTheta => vec![d.theta.to_vec()],
+            Self::Ours => d.snapshots.iter().map(|s| s.to_vec()).collect(),
+        }
+    }
+
+    /// The input row at the end of the trace.
+    pub fn final_row(self, d: &TraceFeatures) -> Vec<f64> {
+        self.rows(d).pop().unwrap_or_default()
+    }
+
+    /// Training settings.
+    pub fn config(self, seed: u64) -> TrainConfig {
+        match self {
+            Self::Ours => TrainConfig {
+                hidden: [32, 32],
+                activation: Activation::Relu,
+                learning_rate: 3e-3,
+                batch: 64,
+                max_epochs: 120,
+                patience: 8,
+                validation_fraction: 0.2,
+                seed,
+            },
+            _ => TrainConfig::paper(seed),
+        }
+    }
+}
+
+/// Trains one classifier on `data` (labels indexed in `classes`).
+pub fn train_kind(kind: Kind, data: &[TraceFeatures], classes: &[FaultClass], seed: u64) -> (Mlp, TrainLog) {
+    let mut x = Vec::new();
+    let mut y = Vec::new();
+    for d in data {
+        let label = classes.iter().position(|c| *c == d.class).unwrap_or(0);
+        for r in kind.rows(d) {
+            x.push(r);
+            y.push(label);
+        }
+    }
+    nn::train(&x, &y, classes.len(), &kind.config(seed))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Model files
+
+/// Writes a float model as text.
+pub fn write_mlp(path: &Path, net: &Mlp, classes: &[FaultClass]) -> Result<()> {
+    let mut s = String::new();
+    let join = |v: &[f64]| v.iter().map(|x| format!("{x:?}")).collect::<Vec<_>>().join(" ");
+    writeln!(s, "mlp 1")?;
+    writeln!(s, "activation {}", net.activation.name())?;
+    writeln!(s, "classes {}", classes.iter().map(|c| c.label()).collect::<Vec<_>>().join(" "))?;
+    writeln!(s, "in_mean {}", join(&net.in_mean))?;
+    writeln!(s, "in_std {}", join(&net.in_std))?;
+    for l in &net.layers {
+        writeln!(s, "layer {} {}", l.n_in, l.n_out)?;
+        writeln!(s, "w {}", join(&l.w))?;
+        writeln!(s, "b {}", join(&l.b))?;
+    }
+    std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Reads a model written by [`write_mlp`].
+pub fn read_mlp(path: &Path) -> Result<(Mlp, Vec<FaultClass>)> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let err = |line: usize, m: &str| anyhow::anyhow!("{}:{}: {m}", path.display(), line + 1);
+    let mut lines = text.lines().enumerate();
+    let mut next = |key: &str| -> Result<(usize, Vec<String>)> {
+        let (i, l) = lines.next().ok_or_else(|| err(0, "unexpected end of file"))?;
+        let mut parts = l.split_whitespace();
+        if parts.next() != Some(key) {
+            return Err(err(i, &format!("expected `{key}`")));
+        }
+        Ok((i, parts.map(str::to_owned).collect()))
+    };
+    let floats = |i: usize, v: Vec<String>| -> Result<Vec<f64>> {
+        v.iter().map(|s| s.parse::<f64>().ok().filter(|x| x.is_finite()).ok_or_else(|| err(i, "bad number"))).collect()
+    };
+    let (i, v) = next("mlp")?;
+    if v != ["1"] {
+        return Err(err(i, "unsupported version"));
+    }
+    let (i, v) = next("activation")?;
+    let activation = v.first().and_then(|s| Activation::from_name(s)).ok_or_else(|| err(i, "bad activation"))?;
+    let (i, v) = next("classes")?;
+    let classes = v
+        .iter()
+        .map(|s| FaultClass::from_label(s).ok_or_else(|| err(i, "unknown class")))
+        .collect::<Result<Vec<_>>>()?;
+    let (i, v) = next("in_mean")?;
+    let in_mean = floats(i, v)?;
+    let (i, v) = next("in_std")?;
+    let in_std = floats(i, v)?;
+    if in_std.len() != in_mean.len() {
+        return Err(err(i, "in_std length"));
+    }
+    let mut layers = Vec::new();
+    let mut width = in_mean.len();
+    while let Ok((i, v)) = next("layer") {
+        let dims: Vec<usize> = v.iter().filter_map(|s| s.parse().ok()).collect();
+        if dims.len() != 2 || dims[0] != width {
+            return Err(err(i, "bad layer shape"));
+        }
+        let (iw, w) = next("w")?;
+        let w = floats(iw, w)?;
+        let (ib, b) = next("b")?;
+        let b = floats(ib, b)?;
+        if w.len() != dims[0] * dims[1] || b.len() != dims[1] {
+            return Err(err(ib, "weight count"));
+        }
+        layers.push(nn::Dense { n_in: dims[0], n_out: dims[1], w, b });
+        width = dims[1];
+    }
+    if layers.is_empty() || width != classes.len() {
+        return Err(err(0, "no layers or class count mismatch"));
+    }
+    Ok((Mlp { in_mean, in_std, layers, activation }, classes))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Quantization
+
+/// An int8 model with owned storage (host side); [`QuantParams::with_model`] lends it to the
+/// core's inference as a [`QuantModel`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct QuantParams {
+    /// Classes of the outputs.
+    pub classes: Vec<FaultClass>,
+    /// Input map multiplier.
+    pub input_scale: Vec<f64>,
+    /// Input map offset.
+    pub input_offset: Vec<f64>,
+    /// Smallest mapped input seen in calibration.
+    pub input_low: Vec<f64>,
+    /// Largest mapped input seen in calibration.
+    pub input_high: Vec<f64>,
+    /// Layers: (n_in, n_out, weights, bias, multiplier, shift, relu).
+    pub layers: Vec<QuantLayerParams>,
+    /// Softmax table.
+    pub exp_table: [u16; 256],
+}
+
+/// Owned storage of one [`QuantLayer`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct QuantLayerParams {
+    /// Inputs.
+    pub n_in: usize,
+    /// Outputs.
+    pub n_out: usize,
+    /// int8 weights.
+    pub weights: Vec<i8>,
+    /// int32 biases.
+    pub bias: Vec<i32>,
+    /// Q31 multipliers.
+    pub multiplier: Vec<i32>,
+    /// Extra shifts.
+    pub shift: Vec<u8>,
+    /// ReLU hidden layer.
+    pub relu: bool,
+}
+
+impl QuantParams {
+    /// Runs `f` with the core's view of this model.
+    pub fn with_model<R>(&self, f: impl FnOnce(&QuantModel<'_>) -> R) -> R {
+        let layers: Vec<QuantLayer<'_>> = self
+            .layers
+            .iter()
+            .map(|l| QuantLayer {
+                n_in: l.n_in,
+                n_out: l.n_out,
+                weights: &l.weights,
+                bias: &l.bias,
+                multiplier: &l.multiplier,
+                shift: &l.shift,
+                relu: l.relu,
+            })
+            .collect();
+        let model = QuantModel {
+            classes: &self.classes,
+            input_scale: &self.input_scale,
+            input_offset: &self.input_offset,
+            input_low: &self.input_low,
+            input_high: &self.input_high,
+            layers: &layers,
+            exp_table: &self.exp_table,
+        };
+        f(&model)
+    }
+}
+
+/// Splits a positive real multiplier `m < 1` into a Q31 mantissa and an extra right shift.
+fn multiplier_q31(m: f64) -> (i32, u8) {
+    if !(m > 0.0 && m.is_finite()) {
+        return (0, 0);
+    }
+    let mut shift = 0u8;
+    let mut v = m;
+    while v < 0.5 && shift < 31 {
+        v *= 2.0;
+        shift += 1;
+    }
+    let q = (v * f64::from(1u32 << 31)).round().min(f64::from(i32::MAX)) as i32;
+    (q, shift)
+}
+
+/// Post-training int8 quantization of a ReLU network, calibrated on `calib` (raw feature rows).
+pub fn quantize(net: &Mlp, classes: &[FaultClass], calib: &[Vec<f64>]) -> Result<QuantParams> {
+    if net.activation != Activation::Relu {
+        bail!("only ReLU networks are quantized (integer activation)");
+    }
+    let n_in = net.n_inputs();
+    let zs: Vec<Vec<f64>> = calib.iter().map(|x| net.standardise(x)).collect();
+    // Input map: the largest |z| seen in calibration maps to 127.
+    let mut in_scale_q = vec![0.0; n_in];
+    for (j, s) in in_scale_q.iter_mut().enumerate() {
+        let m = zs.iter().map(|z| z[j].abs()).fold(0.0, f64::max).max(1e-3);
+        *s = 127.0 / m;
+    }
+    let input_scale: Vec<f64> = (0..n_in).map(|j| in_scale_q[j] / net.in_std[j]).collect();
+    let input_offset: Vec<f64> = (0..n_in).map(|j| -net.in_mean[j] * in_scale_q[j] / net.in_std[j]).collect();
+    // Float activations per layer for calibration of the output scales.
+    let mut acts: Vec<Vec<f64>> = zs.clone();
+    let mut layers = Vec::new();
+    let mut s_x = 1.0; // real value of one input step of the current layer (after folding)
+    let n_layers = net.layers.len();
+    let mut logit_scale = 1.0;
+    for (li, l) in net.layers.iter().enumerate() {
+        let last = li + 1 == n_layers;
+        // Effective float weights on the integer inputs.
+        let w_eff: Vec<f64> = (0..l.n_out * l.n_in)
+            .map(|k| {
+                let i = k % l.n_in;
+                if li == 0 {
+                    l.w[k] / in_scale_q[i]
+                } else {
+                    l.w[k] * s_x
+                }
+            })
+            .collect();
+        let row_max = |o: usize| w_eff[o * l.n_in..(o + 1) * l.n_in].iter().fold(1e-12_f64, |m, w| m.max(w.abs()));
+        let all_max = (0..l.n_out).map(row_max).fold(1e-12_f64, f64::max);
+        let sw: Vec<f64> = (0..l.n_out).map(|o| 127.0 / if last { all_max } else { row_max(o) }).collect();
+        // Next activations (float) and their scale.
+        let next: Vec<Vec<f64>> = acts
+            .iter()
+            .map(|x| {
+                (0..l.n_out)
+                    .map(|o| {
+                        let s = l.b[o] + (0..l.n_in).map(|i| l.w[o * l.n_in + i] * x[i]).sum::<f64>();
+                        if last {
+                            s
+                        } else {
+                            s.max(0.0)
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let max_out = next.iter().flat_map(|v| v.iter()).fold(1e-6_f64, |m, v| m.max(v.abs()));
+        // Output scale; capped so that every multiplier stays below 1.
+        let mut s_y = 127.0 / max_out;
+        let cap = sw.iter().fold(f64::INFINITY, |m, &w| m.min(w)) * 0.999;
+        s_y = s_y.min(cap);
+        let weights: Vec<i8> =
+            w_eff.iter().enumerate().map(|(k, w)| (w * sw[k / l.n_in]).round().clamp(-127.0, 127.0) as i8).collect();
+        let bias: Vec<i32> = (0..l.n_out).map(|o| (l.b[o] * sw[o]).round() as i32).collect();
+        let (multiplier, shift): (Vec<i32>, Vec<u8>) = (0..l.n_out).map(|o| multiplier_q31(s_y / sw[o])).unzip();
+        layers.push(QuantLayerParams { n_in: l.n_in, n_out: l.n_out, weights, bias, multiplier, shift, relu: !last });
+        acts = next;
+        s_x = 1.0 / s_y; // real value per int8 step of this layer's output
+        if last {
+            logit_scale = s_y;
+        }
+    }
+    let mut exp_table = [0u16; 256];
+    for (d, e) in exp_table.iter_mut().enumerate() {
+        *e = (65535.0 * (-(d as f64) / logit_scale).exp()).round() as u16;
+    }
+    let mapped = |j: usize, x: &[f64]| (x[j] * input_scale[j] + input_offset[j]).round();
+    let input_low: Vec<f64> =
+        (0..n_in).map(|j| calib.iter().map(|x| mapped(j, x)).fold(f64::INFINITY, f64::min)).collect();
+    let input_high: Vec<f64> =
+        (0..n_in).map(|j| calib.iter().map(|x| mapped(j, x)).fold(f64::NEG_INFINITY, f64::max)).collect();
+    let q =
+        QuantParams { classes: classes.to_vec(), input_scale, input_offset, input_low, input_high, layers, exp_table };
+    q.with_model(|m| m.validate()).map_err(|e| anyhow::anyhow!("quantized model invalid: {e:?}"))?;
+    Ok(q)
+}
+
+/// Writes a quantized model as text (read back by [`read_quant`]).
+pub fn write_quant(path: &Path, q: &QuantParams) -> Result<()> {
+    let mut s = String::new();
+    let j = |v: Vec<String>| v.join(" ");
+    writeln!(s, "int8 1")?;
+    writeln!(s, "classes {}", j(q.classes.iter().map(|c| c.label().to_owned()).collect()))?;
+    writeln!(s, "input_scale {}", j(q.input_scale.iter().map(|x| format!("{x:?}")).collect()))?;
+    writeln!(s, "input_offset {}", j(q.input_offset.iter().map(|x| format!("{x:?}")).collect()))?;
+    writeln!(s, "input_low {}", j(q.input_low.iter().map(|x| format!("{x:?}")).collect()))?;
+    writeln!(s, "input_high {}", j(q.input_high.iter().map(|x| format!("{x:?}")).collect()))?;
+    writeln!(s, "exp_table {}", j(q.exp_table.iter().map(u16::to_string).collect()))?;
+    for l in &q.layers {
+        writeln!(s, "layer {} {} {}", l.n_in, l.n_out, u8::from(l.relu))?;
+        writeln!(s, "w {}", j(l.weights.iter().map(i8::to_string).collect()))?;
+        writeln!(s, "b {}", j(l.bias.iter().map(i32::to_string).collect()))?;
+        writeln!(s, "m {}", j(l.multiplier.iter().map(i32::to_string).collect()))?;
+        writeln!(s, "s {}", j(l.shift.iter().map(u8::to_string).collect()))?;
+    }
+    std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Reads a model written by [`write_quant`].
+pub fn read_quant(path: &Path) -> Result<QuantParams> {
+    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let bad = |what: &str| anyhow::anyhow!("{}: bad or missing `{what}`", path.display());
+    let mut lines = text.lines();
+    let mut field = |key: &str| -> Result<Vec<String>> {
+        let l = lines.next().ok_or_else(|| bad(key))?;
+        let mut p = l.split_whitespace();
+        if p.next() != Some(key) {
+            return Err(bad(key));
+        }
+        Ok(p.map(str::to_owned).collect())
+    };
+    fn parse<T: std::str::FromStr>(v: &[String]) -> Option<Vec<T>> {
+        v.iter().map(|s| s.parse().ok()).collect()
+    }
+    if field("int8")? != ["1"] {
+        return Err(bad("int8 1"));
+    }
+    let classes = field("classes")?.iter().map(|s| FaultClass::from_label(s)).collect::<Option<Vec<_>>>();
+    let classes = classes.ok_or_else(|| bad("classes"))?;
+    let input_scale: Vec<f64> = parse(&field("input_scale")?).ok_or_else(|| bad("input_scale"))?;
+    let input_offset: Vec<f64> = parse(&field("input_offset")?).ok_or_else(|| bad("input_offset"))?;
+    let input_low: Vec<f64> = parse(&field("input_low")?).ok_or_else(|| bad("input_low"))?;
+    let input_high: Vec<f64> = parse(&field("input_high")?).ok_or_else(|| bad("input_high"))?;
+    let table: Vec<u16> = parse(&field("exp_table")?).ok_or_else(|| bad("exp_table"))?;
+    let exp_table: [u16; 256] = table.try_into().map_err(|_| bad("exp_table"))?;
+    let mut layers = Vec::new();
+    while let Ok(h) = field("layer") {
+        let h: Vec<usize> = parse(&h).filter(|h: &Vec<usize>| h.len() == 3).ok_or_else(|| bad("layer"))?;
+        layers.push(QuantLayerParams {
+            n_in: h[0],
+            n_out: h[1],
+            relu: h[2] == 1,
+            weights: parse(&field("w")?).ok_or_else(|| bad("w"))?,
+            bias: parse(&field("b")?).ok_or_else(|| bad("b"))?,
+            multiplier: parse(&field("m")?).ok_or_else(|| bad("m"))?,
+            shift: parse(&field("s")?).ok_or_else(|| bad("s"))?,
+        });
+    }
+    let q = QuantParams { classes, input_scale, input_offset, input_low, input_high, layers, exp_table };
+    q.with_model(|m| m.validate()).map_err(|e| anyhow::anyhow!("{}: inconsistent model: {e:?}", path.display()))?;
+    Ok(q)
+}
+
+/// Rust source of a quantized model for `src/classifier/model_weights.rs`.
+pub fn rust_source(q: &QuantParams, provenance: &str) -> String {
+    let mut s = String::new();
+    let list = |v: Vec<String>| v.join(", ");
+    let _ = writeln!(
+        s,
+        "//! The int8 fault classifier compiled into the core. Generated by `host-sim train`; do not edit."
+    );
+    let _ = writeln!(s, "//!");
+    let _ = writeln!(s, "//! Provenance: {provenance}");
+    let _ = writeln!(s);
+    let _ = writeln!(s, "use super::{{QuantLayer, QuantModel}};");
+    let _ = writeln!(s, "use crate::fault::FaultClass;");
+    let _ = writeln!(s);
+    let classes = list(q.classes.iter().map(|c| format!("FaultClass::{c:?}")).collect());
+    let _ = writeln!(s, "static CLASSES: [FaultClass; {}] = [{classes}];", q.classes.len());
+    let f = |v: &[f64]| list(v.iter().map(|x| format!("{x:?}")).collect());
+    let n = q.input_scale.len();
+    let _ = writeln!(s, "static INPUT_SCALE: [f64; {n}] = [{}];", f(&q.input_scale));
+    let _ = writeln!(s, "static INPUT_OFFSET: [f64; {n}] = [{}];", f(&q.input_offset));
+    let _ = writeln!(s, "static INPUT_LOW: [f64; {n}] = [{}];", f(&q.input_low));
+    let _ = writeln!(s, "static INPUT_HIGH: [f64; {n}] = [{}];", f(&q.input_high));
+    let _ = writeln!(s, "static EXP_TABLE: [u16; 256] = [{}];", list(q.exp_table.iter().map(u16::to_string).collect()));
+    for (i, l) in q.layers.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "static W{i}: [i8; {}] = [{}];",
+            l.weights.len(),
+            list(l.weights.iter().map(i8::to_string).collect())
+        );
+        let _ =
+            writeln!(s, "static B{i}: [i32; {}] = [{}];", l.n_out, list(l.bias.iter().map(i32::to_string).collect()));
+        let _ = writeln!(
+            s,
+            "static M{i}: [i32; {}] = [{}];",
+            l.n_out,
+            list(l.multiplier.iter().map(i32::to_string).collect())
+        );
+        let _ =
+            writeln!(s, "static S{i}: [u8; {}] = [{}];", l.n_out, list(l.shift.iter().map(u8::to_string).collect()));
+    }
+    let _ = writeln!(s, "static LAYERS: [QuantLayer<'static>; {}] = [", q.layers.len());
+    for (i, l) in q.layers.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "    QuantLayer {{ n_in: {}, n_out: {}, weights: &W{i}, bias: &B{i}, multiplier: &M{i}, shift: &S{i}, relu: {} }},",
+            l.n_in, l.n_out, l.relu
+        );
+    }
+    let _ = writeln!(s, "];");
+    let _ = writeln!(s);
+    let _ = writeln!(s, "/// The classifier compiled into the core.");
+    let _ = writeln!(
+        s,
+        "pub static MODEL: QuantModel<'static> = QuantModel {{ classes: &CLASSES, input_scale: &INPUT_SCALE, \
+         input_offset: &INPUT_OFFSET, input_low: &INPUT_LOW, input_high: &INPUT_HIGH, layers: &LAYERS, exp_table: &EXP_TABLE }};"
+    );
+    s
+}
+
+/// Golden vectors: for each feature row, its exact f64 bits, the int8 inputs, logits, class
+/// and confidence the core computes (or `implausible`). One line per vector:
+/// `x <hex bits…> | q <ints…> | logits <ints…> | class <label> | conf <u8>`.
+pub fn golden_text(q: &QuantParams, rows: &[Vec<f64>]) -> String {
+    let mut s = String::from(
+        "# Golden vectors of the int8 classifier (src/classifier/model_weights.rs), generated by host-sim train.\n\
+         # x: feature bits (f64::to_bits, hex) | q: int8 inputs | logits: int8 | class | conf (0..=255)\n",
+    );
+    q.with_model(|m| {
+        for x in rows {
+            let bits: Vec<String> = x.iter().map(|v| format!("{:016x}", v.to_bits())).collect();
+            let mut qi = vec![0i8; x.len()];
+            let _ = write!(s, "x {} | ", bits.join(" "));
+            match m.quantize_input(x, &mut qi).and_then(|_| m.infer(&qi)) {
+                Ok(inf) => {
+                    let _ = writeln!(
+                        s,
+                        "q {} | logits {} | class {} | conf {}",
+                        qi.iter().map(i8::to_string).collect::<Vec<_>>().join(" "),
+                        inf.logits[..inf.n_classes].iter().map(i8::to_string).collect::<Vec<_>>().join(" "),
+                        inf.class.label(),
+                        inf.confidence
+                    );
+                }
+                Err(_) => {
+                    let _ = writeln!(s, "implausible");
+                }
+            }
+        }
+    });
+    s
+}
+
+/// Training summary printed and returned.
+#[derive(Debug, Clone)]
+pub struct Trained {
+    /// Classes.
+    pub classes: Vec<FaultClass>,
+    /// Float models in [`Kind::ALL`] order with their logs.
+    pub models: Vec<(Kind, Mlp, TrainLog)>,
+    /// int8 version of `ours`.
+    pub quant: QuantParams,
+}
+
+/// Trains all classifiers on `train` and quantizes ours.
+pub fn train_all(train: &[TraceFeatures], seed: u64) -> Result<Trained> {
+    let classes = classes_of(train);
+    if classes.len() < 2 {
+        bail!("need at least two classes to train, found {}", classes.len());
+    }
+    let models: Vec<(Kind, Mlp, TrainLog)> = Kind::ALL
+        .par_iter()
+        .map(|&k| {
+            let (m, log) = train_kind(k, train, &classes, seed);
+            (k, m, log)
+        })
+        .collect();
+    let ours = models.iter().find(|m| m.0 == Kind::Ours).map(|m| &m.1).context("ours missing")?;
+    let calib: Vec<Vec<f64>> = train.iter().flat_map(|d| Kind::Ours.rows(d)).collect();
+    let quant = quantize(ours, &classes, &calib)?;
+    Ok(Trained { classes, models, quant })
+}
+
+/// `host-sim train`.
+pub fn run(a: &TrainArgs) -> Result<()> {
+    let t0 = std::time::Instant::now();
+    let train = dataset_features(&a.dataset, Some("train"))?;
+    eprintln!("features of {} training traces: {:.1} s", train.len(), t0.elapsed().as_secs_f64());
+    let t1 = std::time::Instant::now();
+    let trained = train_all(&train, a.seed)?;
+    eprintln!("training: {:.1} s", t1.elapsed().as_secs_f64());
+    std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
+    for (k, m, log) in &trained.models {
+        println!(
+            "{:<15} epochs {:>3} (best {:>3})  validation loss {:.4}  validation accuracy {:.2} %",
+            k.name(),
+            log.epochs,
+            log.best_epoch,
+            log.best_val_loss,
+            100.0 * log.val_accuracy
+        );
+        write_mlp(&a.out.join(format!("{}.mlp", k.name())), m, &trained.classes)?;
+    }
+    write_quant(&a.out.join("ours_int8.txt"), &trained.quant)?;
+    println!("models written to {}", a.out.display());
+    if let Some(path) = &a.export_rs {
+        let provenance = format!(
+            "`host-sim train {} --seed {}` ({} training traces).",
+            a.dataset.file_name().map_or_else(|| a.dataset.display().to_string(), |f| f.to_string_lossy().into_owned()),
+            a.seed,
+            train.len()
+        );
+        std::fs::write(path, rust_source(&trained.quant, &provenance))
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("int8 model exported to {}", path.display());
+    }
+    if let Some(path) = &a.golden {
+        let rows = golden_rows(&train);
+        std::fs::write(path, golden_text(&trained.quant, &rows))
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("{} golden vectors written to {}", rows.len(), path.display());
+    }
+    Ok(())
+}
+
+/// Feature rows for the golden file: every 40th training trace at three times, plus edge cases
+/// (all-zero features, a release at 0.01 s, an implausible value).
+pub fn golden_rows(train: &[TraceFeatures]) -> Vec<Vec<f64>> {
+    let mut rows: Vec<Vec<f64>> = Vec::new();
+    for d in train.iter().step_by(40) {
+        for &k in &[2usize, 9, SNAPSHOT_TIMES_S.len() - 1] {
+            if let Some(s) = d.snapshots.get(k) {
+                rows.push(s.to_vec());
+            }
+        }
+    }
+    rows.push(vec![0.0; N_OURS]);
+    if let Some(mut r) = train.first().and_then(|d| d.snapshots.last()).map(|s| s.to_vec()) {
+        r[0] = 1e6;
+        rows.push(r);
+    }
+    rows
+}

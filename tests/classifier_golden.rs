@@ -1,0 +1,46 @@
+//! The int8 classifier compiled into the core reproduces the shared golden vectors exactly
+//! (`tests/golden/classifier_golden.txt`, written by `host-sim train --golden`). The firmware
+//! checks the same file on thumbv7em in QEMU: identical integers on both targets.
+
+use pbm::classifier::model_weights::MODEL;
+use pbm::classifier::ModelError;
+
+const GOLDEN: &str = include_str!("golden/classifier_golden.txt");
+
+fn ints<T: std::str::FromStr>(field: &str, key: &str) -> Vec<T> {
+    let rest = field.trim().strip_prefix(key).unwrap_or_else(|| panic!("expected `{key}` in `{field}`"));
+    rest.split_whitespace().map(|s| s.parse().ok().expect("integer")).collect()
+}
+
+#[test]
+fn compiled_model_matches_golden_vectors() {
+    MODEL.validate().expect("compiled model is consistent");
+    let mut checked = 0;
+    let mut implausible = 0;
+    for (n, line) in GOLDEN.lines().enumerate().filter(|(_, l)| !l.starts_with('#') && !l.trim().is_empty()) {
+        let fields: Vec<&str> = line.split('|').collect();
+        let x: Vec<f64> = fields[0]
+            .trim()
+            .strip_prefix("x ")
+            .expect("x field")
+            .split_whitespace()
+            .map(|h| f64::from_bits(u64::from_str_radix(h, 16).expect("hex bits")))
+            .collect();
+        let mut q = vec![0i8; x.len()];
+        let quantized = MODEL.quantize_input(&x, &mut q);
+        if fields[1].trim() == "implausible" {
+            assert!(matches!(quantized, Err(ModelError::Implausible { .. })), "line {}", n + 1);
+            implausible += 1;
+            continue;
+        }
+        quantized.unwrap_or_else(|e| panic!("line {}: {e:?}", n + 1));
+        assert_eq!(q, ints::<i8>(fields[1], "q"), "line {}: int8 inputs", n + 1);
+        let inf = MODEL.infer(&q).expect("inference");
+        assert_eq!(inf.logits[..inf.n_classes].to_vec(), ints::<i8>(fields[2], "logits"), "line {}: logits", n + 1);
+        assert_eq!(inf.class.label(), fields[3].trim().strip_prefix("class ").expect("class"), "line {}", n + 1);
+        assert_eq!(vec![inf.confidence], ints::<u8>(fields[4], "conf"), "line {}: confidence", n + 1);
+        checked += 1;
+    }
+    assert!(checked >= 100, "only {checked} golden vectors");
+    assert!(implausible >= 1, "the golden file must exercise the implausible path");
+}
