@@ -82,7 +82,7 @@ fn run_monitor(adc: &[AdcCounts]) {
 /// `callgrind_annotate --inclusive=yes` output.
 fn inclusive_ir(annotate: &str, name: &str) -> Option<u64> {
     annotate.lines().filter(|l| l.contains(name) && !l.contains("[inlined]")).find_map(|l| {
-        let n = l.trim_start().split_whitespace().next()?;
+        let n = l.split_whitespace().next()?;
         n.replace(',', "").parse().ok()
     })
 }

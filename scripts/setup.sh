@@ -13,11 +13,15 @@ for c in rustfmt clippy; do
     fi
 done
 
-if ! command -v qemu-system-arm >/dev/null 2>&1; then
-    echo "setup: installing qemu-system-arm (apt)"
+# qemu-system-arm runs the firmware; llvm's size/nm read the firmware ELF for the cost report.
+missing=()
+command -v qemu-system-arm >/dev/null 2>&1 || missing+=(qemu-system-arm)
+command -v llvm-size >/dev/null 2>&1 || command -v arm-none-eabi-size >/dev/null 2>&1 || missing+=(llvm)
+if [ ${#missing[@]} -gt 0 ]; then
+    echo "setup: installing ${missing[*]} (apt)"
     SUDO=""
     if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
     $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq qemu-system-arm >/dev/null
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq "${missing[@]}" >/dev/null
 fi
 qemu-system-arm --version | head -n1

@@ -10,13 +10,15 @@ step() { printf '\n=== %s\n' "$*"; }
 
 step "format"
 cargo fmt --all -- --check
-if [ -d firmware ]; then (cd firmware && cargo fmt -- --check); fi
 
 step "clippy (host, all targets)"
 cargo clippy --workspace --all-targets -- -D warnings
 
 step "clippy (core on thumbv7em-none-eabihf)"
 cargo clippy -p parking-brake-monitor --target thumbv7em-none-eabihf -- -D warnings
+
+step "clippy + fmt (firmware)"
+bash scripts/firmware-lint.sh
 
 for extra in scripts/test-extra-*.sh; do
     [ -e "$extra" ] || continue

@@ -38,6 +38,8 @@ pub struct Monitor {
     samples_since_release: u32,
     last_measured: Result<PressureQ24, SensorFault>,
     estimator: ReleaseEstimator,
+    /// Online features of the current (or last) release, for the classifier.
+    features: crate::features::FeatureExtractor,
 }
 
 impl Monitor {
@@ -54,6 +56,7 @@ impl Monitor {
             samples_since_release: 0,
             last_measured: Ok(PressureQ24::ATMOSPHERE),
             estimator,
+            features: crate::features::FeatureExtractor::new(),
         })
     }
 
@@ -83,6 +86,10 @@ impl Monitor {
             samples_since_release: if valve_open { self.samples_since_release } else { 0 },
             estimates: self.estimator.estimates(),
         };
+        if valve_open {
+            // Only release samples: after the valve closes the last release stays diagnosable.
+            self.features.update(&step);
+        }
         self.twin.update(valve_open);
         if valve_open {
             self.samples_since_release = self.samples_since_release.saturating_add(1);
@@ -117,6 +124,19 @@ impl Monitor {
     /// The last error the estimator reported in this release (`None`: all clean).
     pub fn estimator_error(&self) -> Option<EstimatorError> {
         self.estimator.last_error()
+    }
+
+    /// Online features of the current (or last) release.
+    pub fn features(&self) -> &crate::features::FeatureExtractor {
+        &self.features
+    }
+
+    /// The fault report of the current (or last) release with the classifier compiled into the
+    /// core: a class, or 'cannot diagnose' (sensor fault, too short, implausible features).
+    /// Valid at any time since the release command (early diagnosis); send it when the release
+    /// completes or at a timeout.
+    pub fn diagnosis(&self) -> FaultReport {
+        self.fault_report(crate::classifier::diagnose(&self.features))
     }
 
     /// A fault report for `verdict` (from the classifier) with the time since the release and
@@ -155,5 +175,37 @@ mod tests {
         assert_eq!(s.samples_since_release, 100);
         assert_eq!(s.measured, Err(SensorFault::OpenCircuit));
         assert_eq!(m.status().sensor_fault, Some(SensorFault::OpenCircuit));
+    }
+
+    #[test]
+    fn estimates_reach_the_reports() {
+        use crate::report::{EstimatorState, NoDiagnosis, Verdict};
+        let params = TwinParams::nominal().with_leak_mm(0.8);
+        let mut plant = Twin::new(&params).unwrap();
+        let mut m = Monitor::new(&TwinParams::nominal()).unwrap();
+        assert_eq!(m.status().estimator, EstimatorState::Idle);
+        let mut p = PressureQ24::ATMOSPHERE;
+        let mut step = m.update(adc_from_bar(p.to_bar_g()), true);
+        assert_eq!(m.status().estimator, EstimatorState::Converging);
+        for _ in 0..5999 {
+            p = plant.update(true).pressure;
+            step = m.update(adc_from_bar(p.to_bar_g()), true);
+        }
+        let e = step.estimates;
+        let leak = e.leak_mm.unwrap();
+        assert!((leak - 0.8).abs() < 0.05, "{e:?}");
+        assert!((e.orifice_mm.unwrap() - 1.25).abs() < 0.05, "{e:?}");
+        assert!((e.supply_bar_g.unwrap() - 7.7).abs() < 0.2, "{e:?}");
+        assert_eq!(m.status().estimator, EstimatorState::Settled);
+        let r = m.fault_report(Verdict::CannotDiagnose(NoDiagnosis::TooShort));
+        assert_eq!(r.supply_mbar, e.supply_mbar());
+        assert_eq!(r.leak_um, e.leak_um());
+        assert!(r.leak_um > 750 && r.leak_um < 850 && r.supply_mbar > 7500, "{r:?}");
+        assert!(r.release_completed);
+        assert_eq!(r.time_since_release_cs, 6000);
+        // Valve closed: idle, estimates kept for the report.
+        m.update(adc_from_bar(p.to_bar_g()), false);
+        assert_eq!(m.status().estimator, EstimatorState::Idle);
+        assert_eq!(m.fault_report(Verdict::CannotDiagnose(NoDiagnosis::TooShort)).leak_um, r.leak_um);
     }
 }

@@ -115,7 +115,7 @@ pub struct TwinCoeffs {
 /// | `lag_keep_q30`, `lag_gap_avg_q30` | Q30 | valve lag: e^(−h/τ) and the mean of the closing gap over a substep |
 /// | `heat_rate_q30` | Q30 | h/τ of the gas-to-wall heat transfer (0 = off) |
 /// | `sqrt_theta_s_q24`, `inv_sqrt_theta_s_q24` | Q24 | sqrt(T_supply/T_wall) and its inverse |
-/// | `sensor_keep_q30` | Q30 | transducer lag e^(−h/τ) |
+/// | `sensor_keep_q30`, `sensor_ramp_q30` | Q30 | transducer lag e^(−h/τ) and τ/h (1 − e^(−h/τ)) |
 /// | `sensor_offset_q24`, `sensor_gain_q24` | Q24 | bar, ratio |
 /// | `droop_q24`, `droop_ref_q40` | Q24 bar, Q40 bar/substep | supply sag and the nominal orifice's choked increment |
 /// | `spring_quad_q4` | Q4 | K β / L, N/m² |
@@ -132,6 +132,7 @@ pub struct ExtCoeffs {
     inv_sqrt_theta_s_q24: i64,
     sensor_lag: bool,
     sensor_keep_q30: i64,
+    sensor_ramp_q30: i64,
     sensor_offset_q24: i64,
     sensor_gain_q24: i64,
     droop_q24: i64,
@@ -225,6 +226,11 @@ impl TwinCoeffs {
             inv_sqrt_theta_s_q24: to_q_i64(1.0 / libm::sqrt(theta_s), 24),
             sensor_lag: e.sensor_lag_s > 0.0,
             sensor_keep_q30: to_q_i64(keep(e.sensor_lag_s), 30),
+            sensor_ramp_q30: if e.sensor_lag_s > 0.0 {
+                to_q_i64(e.sensor_lag_s / h * (1.0 - keep(e.sensor_lag_s)), 30)
+            } else {
+                0
+            },
             sensor_offset_q24: to_q_i64(e.sensor_offset_bar, 24),
             sensor_gain_q24: to_q_i64(e.sensor_gain, 24),
             droop_q24: if droop_ref > 0.0 { to_q_i64(e.regulator_droop_bar, 24) } else { 0 },
@@ -503,12 +509,15 @@ impl Twin {
             + i64::from(e.heat_rate_q30 != 0) * (p >> 6);
         let held = self.piston_held_within(upstream, extra);
         for _ in 0..SUBSTEPS {
+            let p_start = i64::from(self.state.p_q24);
             let dx = if held { 0 } else { self.piston_substep() };
             self.pressure_substep_ext(&e, dx);
             if e.sensor_lag {
+                // Exact first-order response to a pressure ramp over the substep.
                 let s = &mut self.ext;
                 let target = i64::from(self.state.p_q24);
-                s.sensed_q24 = target + ((s.sensed_q24 - target) * e.sensor_keep_q30 >> 30);
+                let ramp = (target - p_start) * e.sensor_ramp_q30 >> 30;
+                s.sensed_q24 = target - ramp + ((s.sensed_q24 - p_start) * e.sensor_keep_q30 >> 30);
             }
         }
         let lagged = if e.sensor_lag { self.ext.sensed_q24 } else { i64::from(self.state.p_q24) };
@@ -533,7 +542,7 @@ impl Twin {
         let mut new_share_q16 = 0;
         if self.ext.pending {
             self.ext.elapsed_q16 += FULL_Q16;
-            if self.ext.elapsed_q16 >= e.delay_q16 {
+            if self.ext.elapsed_q16 > e.delay_q16 {
                 new_share_q16 = (self.ext.elapsed_q16 - e.delay_q16).min(FULL_Q16);
                 self.ext.pending = false;
                 self.ext.effective = self.ext.command;
@@ -567,14 +576,8 @@ impl Twin {
                 continue;
             }
             let mut upstream = upstream;
-            if e.droop_q24 != 0 && upstream == k.supply_q24 {
-                // Supply sag proportional to the flow; two fixed-point passes of the implicit
-                // relation pu = Ps − droop · m(pu)/m_ref.
-                for _ in 0..2 {
-                    let f = orifice_dp_q40(upstream, p, k.c_in_q32).max(0) * share_q30 >> 30;
-                    let sag = e.droop_q24 * f / e.droop_ref_q40;
-                    upstream = sat_i32(i64::from(k.supply_q24) - sag);
-                }
+            if e.droop_q24 != 0 && upstream == k.supply_q24 && p < upstream {
+                upstream = drooped_supply_q24(k.supply_q24, p, k.c_in_q32, share_q30, e);
             }
             let f = orifice_dp_q40(upstream, p, k.c_in_q32) * share_q30 >> 30;
             if !thermal {
@@ -615,6 +618,32 @@ impl Twin {
         }
         self.state.p_q24 = sat_i32(i64::from(p) + dp).clamp(0, P_MAX_Q24);
     }
+}
+
+/// Supply pressure pu (Q24) sagging with the flow: the root of pu = Ps − droop · m(pu)/m_ref in
+/// [p, Ps] (monotone), by bisection to 1/256 of the bracket, then linear interpolation.
+fn drooped_supply_q24(supply_q24: i32, p_q24: i32, c_q32: i64, share_q30: i64, e: &ExtCoeffs) -> i32 {
+    // g(pu) = pu − Ps + sag(pu): increasing in pu, g(p) ≤ 0 ≤ g(Ps).
+    let g = |pu: i32| {
+        let f = orifice_dp_q40(pu, p_q24, c_q32).max(0) * share_q30 >> 30;
+        i64::from(pu) - i64::from(supply_q24) + e.droop_q24 * f / e.droop_ref_q40
+    };
+    let (mut lo, mut hi) = (p_q24, supply_q24);
+    let (mut g_lo, mut g_hi) = (g(lo), g(hi));
+    for _ in 0..8 {
+        let mid = lo + ((hi - lo) >> 1);
+        let g_mid = g(mid);
+        if g_mid <= 0 {
+            (lo, g_lo) = (mid, g_mid);
+        } else {
+            (hi, g_hi) = (mid, g_mid);
+        }
+    }
+    let span = g_hi - g_lo;
+    if span <= 0 {
+        return lo;
+    }
+    sat_i32(i64::from(lo) + (i64::from(hi - lo) * -g_lo) / span)
 }
 
 /// sqrt of a Q24 value, Q24 (integer square root: same bits on every target).

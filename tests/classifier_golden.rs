@@ -44,3 +44,36 @@ fn compiled_model_matches_golden_vectors() {
     assert!(checked >= 100, "only {checked} golden vectors");
     assert!(implausible >= 1, "the golden file must exercise the implausible path");
 }
+
+/// The monitor carries the classifier: a simulated healthy release is diagnosed `normal`, a
+/// blocked orifice `orifice_block`, through `Monitor::diagnosis` alone.
+#[test]
+fn monitor_diagnoses_simulated_releases() {
+    use pbm::monitor::Monitor;
+    use pbm::report::Verdict;
+    use pbm::sensor::adc_from_bar;
+    use pbm::{FaultClass, Twin, TwinParams};
+    for (plant, want) in [
+        (TwinParams::nominal(), FaultClass::Normal),
+        (TwinParams::nominal().with_orifice_mm(0.6), FaultClass::OrificeBlock),
+        (TwinParams::nominal().with_leak_mm(0.9), FaultClass::AirLeak),
+        (TwinParams::nominal().with_supply_bar_g(5.0), FaultClass::LowSupply),
+    ] {
+        let mut twin = Twin::new(&plant).unwrap();
+        let mut monitor = Monitor::new(&TwinParams::nominal()).unwrap();
+        for _ in 0..6000 {
+            let p = pbm::PressureQ24(twin.state().p_q24).to_bar_g();
+            monitor.update(adc_from_bar(p), true);
+            twin.update(true);
+        }
+        monitor.update(adc_from_bar(pbm::BarG(0.0)), false); // valve closed: verdict kept
+        let report = monitor.diagnosis();
+        match report.verdict {
+            Verdict::Class { class, confidence } => {
+                assert_eq!(class, want, "{plant:?}");
+                assert!(confidence > 128, "{want}: confidence {confidence}");
+            }
+            v => panic!("{want}: {v:?}"),
+        }
+    }
+}

@@ -164,7 +164,15 @@ proptest! {
         for s in steps {
             c = (c + i32::from(s)).clamp(0, 4095);
             let step = m.update(AdcCounts(c as u16), true);
-            prop_assert!(step.estimates.supply_mbar() <= u16::MAX);
+            let e = step.estimates;
+            // Valve open: a release is in progress, whatever the pressure does.
+            prop_assert_ne!(e.state, EstimatorState::Idle);
+            prop_assert_ne!(e.phase, Phase::Idle);
+            if let Some(s) = e.supply_bar_g {
+                prop_assert!(s.is_finite());
+                prop_assert_eq!(e.supply_mbar(), (s * 1000.0 + 0.5).clamp(0.0, 65_535.0) as u16);
+            }
         }
+        prop_assert_eq!(m.status().estimator, m.estimator().state());
     }
 }

@@ -41,10 +41,36 @@ pub struct BenchArgs {
     pub report: PathBuf,
 }
 
+/// Samples per second, by wall clock and by the thread's CPU time (`None` off Linux).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Rate {
+    /// Samples per wall-clock second.
+    pub wall: f64,
+    /// Samples per CPU second of the measuring thread.
+    pub cpu: Option<f64>,
+}
+
+impl std::fmt::Display for Rate {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{:.2} M samples/s wall", self.wall / 1e6)?;
+        if let Some(c) = self.cpu {
+            write!(f, ", {:.2} M samples/s per CPU second", c / 1e6)?;
+        }
+        Ok(())
+    }
+}
+
+fn rate(samples: u64, start: Instant, cpu0: Option<f64>) -> Rate {
+    let wall = samples as f64 / start.elapsed().as_secs_f64();
+    let cpu = thread_cpu_seconds().zip(cpu0).map(|(b, a)| b - a).filter(|&c| c > 0.0).map(|c| samples as f64 / c);
+    Rate { wall, cpu }
+}
+
 /// Samples per second of the fixed-point twin alone (`Twin::update`), one thread, in releases
 /// of 6000 samples (restarted with `reset`, as the monitor does at each release).
-pub fn twin_throughput(samples: u64) -> Result<f64> {
+pub fn twin_throughput(samples: u64) -> Result<Rate> {
     let mut twin = Twin::new(&TwinParams::nominal()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let cpu0 = thread_cpu_seconds();
     let start = Instant::now();
     let mut done = 0;
     while done < samples {
@@ -54,16 +80,17 @@ pub fn twin_throughput(samples: u64) -> Result<f64> {
         }
         done += 6000;
     }
-    Ok(done as f64 / start.elapsed().as_secs_f64())
+    Ok(rate(done, start, cpu0))
 }
 
 /// Samples per second of the whole per-sample pipeline (`Monitor::update`), one thread, fed
 /// with the ADC samples of a generated healthy release.
-pub fn pipeline_throughput(samples: u64) -> Result<f64> {
+pub fn pipeline_throughput(samples: u64) -> Result<Rate> {
     let fleet = fleet(1, 1);
     let job = crate::generate::TraceJob { class: FaultClass::Normal, test: false, k: 0, locomotive: 0 };
     let (adc, _) = crate::generate::run_job(&job, &fleet, 1, &Default::default())?;
     let mut monitor = Monitor::new(&TwinParams::nominal()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let cpu0 = thread_cpu_seconds();
     let start = Instant::now();
     let mut done = 0;
     while done < samples {
@@ -74,7 +101,28 @@ pub fn pipeline_throughput(samples: u64) -> Result<f64> {
         }
         done += adc.len() as u64 + 1;
     }
-    Ok(done as f64 / start.elapsed().as_secs_f64())
+    Ok(rate(done, start, cpu0))
+}
+
+/// CPU time (user + system, all threads) of this process so far, s; `None` off Linux. Wall
+/// clock on a shared machine measures the neighbours too; CPU time does not.
+pub fn process_cpu_seconds() -> Option<f64> {
+    cpu_seconds("/proc/self/stat")
+}
+
+/// CPU time of the calling thread so far, s; `None` off Linux.
+pub fn thread_cpu_seconds() -> Option<f64> {
+    cpu_seconds("/proc/thread-self/stat")
+}
+
+fn cpu_seconds(stat_file: &str) -> Option<f64> {
+    let stat = std::fs::read_to_string(stat_file).ok()?;
+    // Fields after the command name (which may contain spaces) start at state, field 3;
+    // utime and stime are fields 14 and 15, in clock ticks (100 per second on Linux).
+    let rest = stat.get(stat.rfind(')')? + 2..)?;
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0)
 }
 
 /// One case of the step study: a name and the plant.
@@ -157,15 +205,18 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         md,
         "Command: `cargo run --release -p host-sim -- bench` (release profile). Machine: {cpu}, {cores} cores"
     );
-    let _ = writeln!(md, "(shared with other jobs; figures are wall-clock and therefore lower bounds).\n");
+    let _ = writeln!(
+        md,
+        "(shared with other jobs: wall-clock rates include time lost to them; per-CPU-second rates do not).\n"
+    );
     println!("machine: {cpu}, {cores} cores");
 
     let twin = twin_throughput(a.twin_samples)?;
-    let line = format!("twin alone (pbm::Twin::update), 1 thread: {:.2} M samples/s (target >= 10 M)", twin / 1e6);
+    let line = format!("twin alone (pbm::Twin::update), 1 thread: {twin} (target >= 10 M)");
     println!("{line}");
     let _ = writeln!(md, "- {line}");
     let pipe = pipeline_throughput(a.pipeline_samples)?;
-    let line = format!("full pipeline (pbm::monitor::Monitor::update), 1 thread: {:.2} M samples/s", pipe / 1e6);
+    let line = format!("full pipeline (pbm::monitor::Monitor::update), 1 thread: {pipe}");
     println!("{line}");
     let _ = writeln!(md, "- {line}");
 
@@ -184,7 +235,9 @@ pub fn run(a: &BenchArgs) -> Result<()> {
             force: true,
             effects: Vec::new(),
         };
+        let cpu0 = process_cpu_seconds();
         let s = generate(&args, true)?;
+        let cpu = process_cpu_seconds().zip(cpu0).map(|(b, a)| b - a);
         let _ = std::fs::remove_dir_all(&scratch);
         let line = format!(
             "generate {} traces x 6000 samples (step {} ms), {} threads: {:.2} s wall ({:.0} traces/s, {:.1} MB written)",
@@ -197,6 +250,15 @@ pub fn run(a: &BenchArgs) -> Result<()> {
         );
         println!("{line}");
         let _ = writeln!(md, "- {line}");
+        if let Some(cpu) = cpu {
+            let line = format!(
+                "generate CPU time: {cpu:.1} s ({:.2} ms per trace; ≈ {:.1} s wall on {cores} otherwise idle cores)",
+                cpu / s.traces as f64 * 1e3,
+                cpu / cores as f64
+            );
+            println!("{line}");
+            let _ = writeln!(md, "- {line}");
+        }
     }
 
     if !a.skip_step_study {

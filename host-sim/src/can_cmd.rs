@@ -94,6 +94,10 @@ pub struct DemoLogArgs {
     /// Interface name written in the log.
     #[arg(long, default_value = DEFAULT_IFACE)]
     pub iface: String,
+    /// Instead of simulated releases, sweep the codec: every diagnosis, reason, sensor and
+    /// estimator code with field values at and beyond the edges of their ranges.
+    #[arg(long)]
+    pub sweep: bool,
 }
 
 /// `host-sim can`.
@@ -582,17 +586,80 @@ pub fn write_demo_log<S: FrameSink>(sink: S) -> Result<(u64, S)> {
     Ok((frames, rec.into_sink()))
 }
 
+/// Writes the codec sweep: fault reports for every verdict (each class at confidences 0, 1,
+/// 128, 254, 255 and every cannot-diagnose reason) with time, supply and leak at 0, one step,
+/// mid-range, the top of the range and beyond (saturating); status frames for every sensor and
+/// estimator code with pressures 0, 1, 7700, 65535 mbar. Counters run on per message, frames
+/// are 10 ms apart. Returns frames sent.
+pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
+    use pbm::can::{encode_fault, encode_status};
+    use pbm::report::EstimatorState;
+    let mut verdicts: Vec<Verdict> = Vec::new();
+    for class in FaultClass::ALL {
+        for confidence in [0, 1, 128, 254, 255] {
+            verdicts.push(Verdict::Class { class, confidence });
+        }
+    }
+    for why in [
+        NoDiagnosis::SensorFault(SensorFault::OpenCircuit),
+        NoDiagnosis::SensorFault(SensorFault::ShortCircuit),
+        NoDiagnosis::TooShort,
+        NoDiagnosis::Implausible,
+    ] {
+        verdicts.push(Verdict::CannotDiagnose(why));
+    }
+    let times: [u16; 6] = [0, 10, 6_000, 40_950, 40_951, u16::MAX];
+    let supplies: [u16; 6] = [0, 5, 7_700, 20_475, 20_478, u16::MAX];
+    let leaks: [u16; 6] = [0, 1, 850, 4_095, 4_096, u16::MAX];
+    let (mut n, mut fault_counter, mut status_counter) = (0u64, 0u8, 0u8);
+    for (i, verdict) in verdicts.iter().enumerate() {
+        for k in 0..times.len() {
+            let r = FaultReport {
+                verdict: *verdict,
+                time_since_release_cs: times[k],
+                supply_mbar: supplies[(k + i) % supplies.len()],
+                leak_um: leaks[(k + 2 * i) % leaks.len()],
+                release_completed: (i + k) % 2 == 1,
+            };
+            sink.send(n * 10_000, &encode_fault(&r, fault_counter))?;
+            fault_counter = (fault_counter + 1) & 0xF;
+            n += 1;
+        }
+    }
+    let states = [EstimatorState::Idle, EstimatorState::Converging, EstimatorState::Settled, EstimatorState::Frozen];
+    for (i, sensor_fault) in [None, Some(SensorFault::OpenCircuit), Some(SensorFault::ShortCircuit)].into_iter().enumerate() {
+        for (j, estimator) in states.into_iter().enumerate() {
+            for (k, pressure_mbar) in [0u16, 1, 7_700, u16::MAX].into_iter().enumerate() {
+                let version = [(0, 0), (0, 1), (255, 255), (12, 34)][(i + j + k) % 4];
+                let s = StatusReport { sensor_fault, estimator, pressure_mbar, version };
+                sink.send(n * 10_000, &encode_status(&s, status_counter))?;
+                status_counter = (status_counter + 1) & 0xF;
+                n += 1;
+            }
+        }
+    }
+    Ok((n, sink))
+}
+
 fn run_demo_log(a: &DemoLogArgs) -> Result<()> {
+    let write = |w| -> Result<(u64, CandumpWriter<_>)> {
+        if a.sweep {
+            write_codec_sweep(w)
+        } else {
+            write_demo_log(w)
+        }
+    };
     let frames = match &a.out {
         Some(path) => {
             let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-            let (n, w) = write_demo_log(CandumpWriter::new(std::io::BufWriter::new(f), &a.iface))?;
+            let out: Box<dyn Write> = Box::new(std::io::BufWriter::new(f));
+            let (n, w) = write(CandumpWriter::new(out, &a.iface))?;
             w.finish().with_context(|| format!("cannot write {}", path.display()))?;
             n
         }
         None => {
-            let stdout = std::io::stdout();
-            let (n, w) = write_demo_log(CandumpWriter::new(std::io::BufWriter::new(stdout.lock()), &a.iface))?;
+            let out: Box<dyn Write> = Box::new(std::io::BufWriter::new(std::io::stdout().lock()));
+            let (n, w) = write(CandumpWriter::new(out, &a.iface))?;
             w.finish()?;
             n
         }

@@ -109,6 +109,7 @@ pub fn simulate_twin(params: &TwinParams, samples: usize) -> Result<Vec<f64>, pb
 
 struct Problem<'a> {
     measured: &'a [Option<f64>],
+    evaluations: &'a std::sync::atomic::AtomicU64,
     base: TwinParams,
     which: FitParams,
 }
@@ -126,6 +127,7 @@ impl CostFunction for Problem<'_> {
     type Param = Vec<f64>;
     type Output = f64;
     fn cost(&self, x: &Self::Param) -> Result<Self::Output, ArgminError> {
+        self.evaluations.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
         Ok(self.sse(&self.which.apply(&self.base, x)))
     }
 }
@@ -159,7 +161,8 @@ pub fn fit_trace(measured: &[Option<f64>], base: &TwinParams, which: FitParams, 
         bail!("the trace has no valid pressure sample");
     }
     base.validate().map_err(|e| anyhow::anyhow!("invalid base parameters: {e}"))?;
-    let problem = Problem { measured, base: *base, which };
+    let evaluations = std::sync::atomic::AtomicU64::new(0);
+    let problem = Problem { measured, evaluations: &evaluations, base: *base, which };
     let solver = NelderMead::new(which.simplex(base)).with_sd_tolerance(1e-9)?;
     let res = Executor::new(problem, solver).configure(|s| s.max_iters(max_iters)).run()?;
     let state = res.state();
@@ -167,7 +170,7 @@ pub fn fit_trace(measured: &[Option<f64>], base: &TwinParams, which: FitParams, 
     let params = which.apply(base, &best);
     let model = simulate_twin(&params, measured.len()).map_err(|e| anyhow::anyhow!("fitted brake invalid: {e}"))?;
     let (m, q): (Vec<f64>, Vec<f64>) = measured.iter().zip(&model).filter_map(|(m, q)| m.map(|m| (m, *q))).unzip();
-    let evaluations = state.get_func_counts().get("cost_count").copied().unwrap_or(0);
+    let evaluations = evaluations.load(std::sync::atomic::Ordering::Relaxed);
     Ok(FitResult {
         which,
         values: which.values(&params),

@@ -4,6 +4,7 @@
 
 pub mod bench;
 pub mod can_bus;
+pub mod chart;
 pub mod can_cmd;
 pub mod can_log;
 pub mod dataset;

@@ -56,6 +56,9 @@ struct SimulateArgs {
     /// Output file (default: standard output).
     #[arg(long)]
     out: Option<PathBuf>,
+    /// Also write an SVG of the release (pressure from both engines, piston travel).
+    #[arg(long)]
+    plot: Option<PathBuf>,
 }
 
 fn main() {
@@ -84,6 +87,9 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<()> {
     let params =
         TwinParams::nominal().with_orifice_mm(a.orifice_mm).with_leak_mm(a.leak_mm).with_supply_bar_g(a.supply_bar);
     let trace = simulate(a.engine, &params, a.duration).map_err(|e| anyhow::anyhow!("invalid parameters: {e}"))?;
+    if let Some(path) = &a.plot {
+        host_sim::simulate::write_release_svg(path, &params, a.duration)?;
+    }
     let meta = [
         ("source", format!("host-sim simulate --engine {:?}", a.engine).to_lowercase()),
         ("orifice_mm", a.orifice_mm.to_string()),

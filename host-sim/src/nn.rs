@@ -197,11 +197,11 @@ impl Mlp {
                 let l = &self.layers[li];
                 let x = &acts[li];
                 let gl = &mut g[li];
-                for o in 0..l.n_out {
-                    gl.b[o] += delta[o];
+                for (o, &d) in delta.iter().enumerate() {
+                    gl.b[o] += d;
                     let row = &mut gl.w[o * l.n_in..(o + 1) * l.n_in];
                     for (gw, xv) in row.iter_mut().zip(x) {
-                        *gw += delta[o] * xv;
+                        *gw += d * xv;
                     }
                 }
                 if li > 0 {
@@ -304,12 +304,12 @@ pub fn train(x: &[Vec<f64>], y: &[usize], n_classes: usize, cfg: &TrainConfig) -
     let (val_idx, train_idx) = order.split_at(n_val.min(x.len()));
     let mut net = Mlp::new(&[n_in, cfg.hidden[0], cfg.hidden[1], n_classes], cfg.activation, cfg.seed);
     // Standardisation from the training split only.
-    for j in 0..n_in {
-        let n = train_idx.len().max(1) as f64;
+    let n = train_idx.len().max(1) as f64;
+    for (j, (mean_j, std_j)) in net.in_mean.iter_mut().zip(net.in_std.iter_mut()).enumerate() {
         let mean = train_idx.iter().map(|&i| x[i][j]).sum::<f64>() / n;
         let var = train_idx.iter().map(|&i| (x[i][j] - mean).powi(2)).sum::<f64>() / n;
-        net.in_mean[j] = mean;
-        net.in_std[j] = if var > 1e-24 { var.sqrt() } else { 1.0 };
+        *mean_j = mean;
+        *std_j = if var > 1e-24 { var.sqrt() } else { 1.0 };
     }
     let z: Vec<Vec<f64>> = x.iter().map(|r| net.standardise(r)).collect();
     let val_z: Vec<&[f64]> = val_idx.iter().map(|&i| z[i].as_slice()).collect();
@@ -391,15 +391,15 @@ mod tests {
             let mut g = net.zero_like();
             net.loss(&zs, &ys, Some(&mut g));
             let h = 1e-6;
-            for li in 0..net.layers.len() {
+            for (li, gl) in g.iter().enumerate() {
                 for k in 0..net.layers[li].w.len() + net.layers[li].b.len() {
                     let mut plus = net.clone();
                     let mut minus = net.clone();
                     let (analytic, pp, pm) = if k < net.layers[li].w.len() {
-                        (g[li].w[k], &mut plus.layers[li].w[k], &mut minus.layers[li].w[k])
+                        (gl.w[k], &mut plus.layers[li].w[k], &mut minus.layers[li].w[k])
                     } else {
                         let kb = k - net.layers[li].w.len();
-                        (g[li].b[kb], &mut plus.layers[li].b[kb], &mut minus.layers[li].b[kb])
+                        (gl.b[kb], &mut plus.layers[li].b[kb], &mut minus.layers[li].b[kb])
                     };
                     *pp += h;
                     *pm -= h;

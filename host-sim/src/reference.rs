@@ -216,12 +216,19 @@ impl ReferenceTwin {
                 continue;
             }
             let mut pu = if open { supply } else { P0 };
-            if open && e.regulator_droop_bar > 0.0 {
-                // Implicit supply sag pu = Ps − droop · m(pu)/m_ref, solved by iteration.
-                for _ in 0..6 {
-                    let (m, _) = flow(pu, s.p, self.area_in, t_supply, t_gas);
-                    pu = supply - e.regulator_droop_bar * 1e5 * (share * m).max(0.0) / m_ref;
+            if open && e.regulator_droop_bar > 0.0 && s.p < supply {
+                // Implicit supply sag pu = Ps − droop · m(pu)/m_ref: bisection on [p, Ps].
+                let (mut lo, mut hi) = (s.p, supply);
+                for _ in 0..50 {
+                    let mid = 0.5 * (lo + hi);
+                    let (m, _) = flow(mid, s.p, self.area_in, t_supply, t_gas);
+                    if mid - supply + e.regulator_droop_bar * 1e5 * (share * m).max(0.0) / m_ref <= 0.0 {
+                        lo = mid;
+                    } else {
+                        hi = mid;
+                    }
                 }
+                pu = 0.5 * (lo + hi);
             }
             let t_up = if open { t_supply } else { t_gas };
             let (m, t) = flow(pu, s.p, self.area_in, t_up, t_gas);

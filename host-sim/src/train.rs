@@ -696,3 +696,46 @@ pub fn golden_rows(train: &[TraceFeatures]) -> Vec<Vec<f64>> {
     }
     rows
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::nn::SplitMix;
+
+    #[test]
+    fn quantized_network_agrees_with_float_and_files_round_trip() {
+        let mut rng = SplitMix::new(5);
+        let (mut x, mut y) = (Vec::new(), Vec::new());
+        for _ in 0..1500 {
+            let a = 4.0 * rng.uniform() - 2.0;
+            let b = 4.0 * rng.uniform() - 2.0;
+            x.push(vec![7.0 + a, 1e-3 * b, a * b]);
+            y.push(usize::from(a + b > 0.0) + usize::from(a - b > 1.0));
+        }
+        let cfg = TrainConfig { learning_rate: 1e-2, ..Kind::Ours.config(3) };
+        let (net, log) = nn::train(&x, &y, 3, &cfg);
+        assert!(log.val_accuracy > 0.95, "{log:?}");
+        let classes = [FaultClass::Normal, FaultClass::AirLeak, FaultClass::LowSupply];
+        let q = quantize(&net, &classes, &x).unwrap();
+        let agree = x.iter().filter(|r| q.with_model(|m| m.classify(r).map(|i| i.index)) == Ok(net.predict(r))).count();
+        assert!(agree * 100 >= 98 * x.len(), "int8 agrees on {agree}/{}", x.len());
+        let dir = tempfile::tempdir().unwrap();
+        write_quant(&dir.path().join("q.txt"), &q).unwrap();
+        assert_eq!(read_quant(&dir.path().join("q.txt")).unwrap(), q);
+        write_mlp(&dir.path().join("m.mlp"), &net, &classes).unwrap();
+        let (back, c) = read_mlp(&dir.path().join("m.mlp")).unwrap();
+        assert_eq!((back, c), (net, classes.to_vec()));
+        let src = rust_source(&q, "test");
+        assert!(src.contains("pub static MODEL: QuantModel<'static>"));
+        let golden = golden_text(&q, &[x[0].clone(), vec![1e9, 0.0, 0.0]]);
+        assert!(golden.lines().last().is_some_and(|l| l.ends_with("implausible")), "{golden}");
+    }
+
+    #[test]
+    fn q31_multipliers() {
+        assert_eq!(multiplier_q31(0.5), (1 << 30, 0));
+        let (m, s) = multiplier_q31(0.1);
+        assert!((f64::from(m) / 2f64.powi(31 + i32::from(s)) - 0.1).abs() < 1e-9);
+        assert_eq!(multiplier_q31(0.0), (0, 0));
+    }
+}

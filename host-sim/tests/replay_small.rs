@@ -62,9 +62,10 @@ fn replay_outcomes_match_the_ground_truth() {
         let nmse = s.nmse_pct.unwrap();
         assert_eq!(s.samples, 6000, "{}", s.file);
         assert_eq!(s.sensor_faults, 0, "{}", s.file);
-        // The last second of the measurement averages the noise away: it must match the
-        // noise-free plant of truth.csv within ~1 ADC count.
-        assert!((final_bar - f("final_bar_g")).abs() < 0.006, "{}: {final_bar} vs truth {}", s.file, t["final_bar_g"]);
+        // The last 10 samples (0.1 s, noise σ/√10 ≈ 3 mbar) match the noise-free plant of
+        // truth.csv at t = 59.99 s: truth.csv and the trace describe the same release.
+        let last10 = samples[5990..].iter().map(|x| x.measured_bar()).sum::<f64>() / 10.0;
+        assert!((last10 - f("final_bar_g")).abs() < 0.012, "{}: {last10} vs truth {}", s.file, t["final_bar_g"]);
         // Pressure (bar g) measured at time t (s).
         let at = |time: f64| samples[(time * 100.0).round() as usize].measured_bar();
         let twin_at = |time: f64| samples[(time * 100.0).round() as usize].twin_bar();

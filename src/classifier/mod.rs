@@ -132,7 +132,7 @@ impl QuantModel<'_> {
             width = l.n_out;
         }
         let last_is_logits = self.layers.last().is_some_and(|l| !l.relu);
-        if !last_is_logits || width != self.classes.len() || width > MAX_CLASSES || width < 2 {
+        if !last_is_logits || width != self.classes.len() || !(2..=MAX_CLASSES).contains(&width) {
             return Err(ModelError::Shape);
         }
         Ok(())
@@ -198,7 +198,7 @@ impl QuantModel<'_> {
         let top = logits[..n].iter().copied().max().unwrap_or(0);
         let sum: u32 =
             logits[..n].iter().map(|&l| u32::from(self.exp_table[(i32::from(top) - i32::from(l)) as usize])).sum();
-        let confidence = if sum == 0 { 0 } else { (255 * 65_535 / sum).min(255) as u8 };
+        let confidence = (255 * 65_535u32).checked_div(sum).map_or(0, |c| c.min(255) as u8);
         Ok(Inference { index, class: self.classes[index], logits, n_classes: n, confidence })
     }
 

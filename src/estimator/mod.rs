@@ -46,8 +46,9 @@
 //!    CUSUM of the a-priori innovation (normalised by its predicted standard deviation
 //!    `σ·√(1 + φᵀPφ)`) ends the fill when `dp/dt` falls below the model (breakaway); regressions
 //!    reach the RLS [`FILL_DELAY_BLOCKS`] blocks late so the blocks between the change and its
-//!    detection are dropped rather than learnt. A fill whose plateau is itself choked (large
-//!    leak, blocked orifice) keeps all windows valid to the end.
+//!    detection are dropped rather than learnt. The fill also ends when the pressure settles
+//!    below the last cutoff (low supply, or a choked equilibrium of a large leak with a blocked
+//!    orifice).
 //! 2. **Plateau** ([`model::PlateauModel`]): once the 1 s mean pressure changes by less than
 //!    `plateau_tolerance_bar` per second, the block pressures feed a one-parameter RLS whose θ is
 //!    the plateau `P∞` (an exponentially weighted mean). At the plateau inflow equals leak:
@@ -477,6 +478,7 @@ impl ReleaseEstimator {
     }
 
     fn plateau_block(&mut self, pressure: f32) -> Result<(), EstimatorError> {
+        // Phases only move forward within a release: fill → transit ⇄ plateau.
         self.window_sum += pressure;
         self.window_len += 1;
         if self.window_len >= WINDOW_BLOCKS {
@@ -489,10 +491,14 @@ impl ReleaseEstimator {
             if self.plateau_blocks == 0 && change.is_some_and(|c| c < tolerance) {
                 self.plateau.reset();
                 self.plateau_blocks = 1;
-                // A choked fill keeps its phase under a choked plateau: its model still holds.
-                if self.phase == Phase::Transit {
-                    self.phase = Phase::Plateau;
+                if self.phase == Phase::ChokedFill {
+                    // The fill ends on a plateau below the last cutoff (low supply, or a choked
+                    // equilibrium): the delayed regressions are still valid fill data.
+                    if let Err(e) = self.flush_pending() {
+                        self.last_error = Some(e);
+                    }
                 }
+                self.phase = Phase::Plateau;
             } else if self.plateau_blocks > 0 && change.is_some_and(|c| c > PLATEAU_EXIT_FACTOR * tolerance) {
                 // The pressure moved again (hysteresis: noise alone does not leave the plateau).
                 self.plateau_blocks = 0;
