@@ -14,7 +14,8 @@ cargo clippy -p host-sim --features socketcan --all-targets -- -D warnings
 step "CAN tests (DBC vs code, codec, E2E, decoder, schedule, logs, mock bus)"
 cargo test -q -p parking-brake-monitor --test can_dbc --test can_codec
 cargo test -q -p parking-brake-monitor --lib can::
-cargo test -q -p host-sim --test can --lib can_
+cargo test -q -p host-sim --lib can_
+cargo test -q -p host-sim --test can
 
 step "cantools decodes every frame host-sim emits"
 bash scripts/can-cantools-check.sh

@@ -39,7 +39,7 @@ pub struct Monitor {
     last_measured: Result<PressureQ24, SensorFault>,
     estimator: ReleaseEstimator,
     /// Online features of the current (or last) release, for the classifier.
-    features: crate::features::FeatureExtractor,
+    features: crate::features::ReleaseFeatures,
 }
 
 impl Monitor {
@@ -56,7 +56,7 @@ impl Monitor {
             samples_since_release: 0,
             last_measured: Ok(PressureQ24::ATMOSPHERE),
             estimator,
-            features: crate::features::FeatureExtractor::new(),
+            features: crate::features::ReleaseFeatures::new(),
         })
     }
 
@@ -127,7 +127,7 @@ impl Monitor {
     }
 
     /// Online features of the current (or last) release.
-    pub fn features(&self) -> &crate::features::FeatureExtractor {
+    pub fn features(&self) -> &crate::features::ReleaseFeatures {
         &self.features
     }
 

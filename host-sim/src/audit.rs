@@ -518,7 +518,8 @@ fn phase_of(x_mm: &[f64], stroke_mm: f64) -> Vec<usize> {
         .collect()
 }
 
-fn acf(r: &[f64], lags: usize) -> Vec<f64> {
+/// Sample autocorrelation of `r` at lags 1..=`lags`.
+pub fn acf(r: &[f64], lags: usize) -> Vec<f64> {
     let n = r.len();
     let m = r.iter().sum::<f64>() / n.max(1) as f64;
     let c0: f64 = r.iter().map(|v| (v - m) * (v - m)).sum();
@@ -582,7 +583,7 @@ fn diagnostics(data: &AuditData, preds: &[(Vec<f64>, Vec<f64>)]) -> Diagnostics 
     let acf20 = acf(&dec, 20);
     let n = dec.len() as f64;
     let q = n * (n + 2.0) * acf20.iter().enumerate().map(|(k, r)| r * r / (n - (k + 1) as f64)).sum::<f64>();
-    let mut best = (0.0, 0i64);
+    let mut best = (0.0f64, 0i64);
     for lag in -50i64..=50 {
         let (a, b): (&[f64], &[f64]) = if lag >= 0 {
             (&res[lag as usize..], &rate[..rate.len() - lag as usize])

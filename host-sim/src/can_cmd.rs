@@ -627,7 +627,9 @@ pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
         }
     }
     let states = [EstimatorState::Idle, EstimatorState::Converging, EstimatorState::Settled, EstimatorState::Frozen];
-    for (i, sensor_fault) in [None, Some(SensorFault::OpenCircuit), Some(SensorFault::ShortCircuit)].into_iter().enumerate() {
+    for (i, sensor_fault) in
+        [None, Some(SensorFault::OpenCircuit), Some(SensorFault::ShortCircuit)].into_iter().enumerate()
+    {
         for (j, estimator) in states.into_iter().enumerate() {
             for (k, pressure_mbar) in [0u16, 1, 7_700, u16::MAX].into_iter().enumerate() {
                 let version = [(0, 0), (0, 1), (255, 255), (12, 34)][(i + j + k) % 4];

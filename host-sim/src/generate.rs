@@ -418,6 +418,17 @@ pub struct GenerateSummary {
 
 /// Generates a data set; `progress` shows a progress bar on stderr (when it is a terminal).
 pub fn generate(a: &GenerateArgs, progress: bool) -> Result<GenerateSummary> {
+    generate_with(a, progress, |_, _| Ok(())).map(|(summary, _)| summary)
+}
+
+/// [`generate`], calling `per_trace` with each trace's manifest row and ADC samples in the same
+/// pass (e.g. to compute features without reading 370 MB back); its results come back in
+/// manifest order.
+pub fn generate_with<T: Send>(
+    a: &GenerateArgs,
+    progress: bool,
+    per_trace: impl Fn(&ManifestRow, &[u16]) -> Result<T> + Sync,
+) -> Result<(GenerateSummary, Vec<T>)> {
     let start = Instant::now();
     let effects = PlantEffects::from_args(&a.effects)?;
     let classes = parse_classes(&a.classes)?;
@@ -438,7 +449,7 @@ pub fn generate(a: &GenerateArgs, progress: bool) -> Result<GenerateSummary> {
     bar.set_message("generate");
     let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads).build().context("cannot start worker threads")?;
     let threads = pool.current_num_threads();
-    let results: Vec<Result<(ManifestRow, TraceTruth, u64)>> = pool.install(|| {
+    let results: Vec<Result<(ManifestRow, TraceTruth, u64, T)>> = pool.install(|| {
         jobs.par_iter()
             .map(|job| {
                 let row = ManifestRow {
@@ -466,8 +477,9 @@ pub fn generate(a: &GenerateArgs, progress: bool) -> Result<GenerateSummary> {
                 write_adc_trace(&mut buf, &meta, &adc)?;
                 let path = a.out.join(&row.file);
                 std::fs::write(&path, &buf).with_context(|| format!("cannot write {}", path.display()))?;
+                let extra = per_trace(&row, &adc)?;
                 bar.inc(1);
-                Ok((row, truth, buf.len() as u64))
+                Ok((row, truth, buf.len() as u64, extra))
             })
             .collect()
     });
@@ -477,8 +489,10 @@ pub fn generate(a: &GenerateArgs, progress: bool) -> Result<GenerateSummary> {
     let mut truth = String::from(TRUTH_HEADER);
     truth.push('\n');
     let mut bytes = 0;
+    let mut extras = Vec::with_capacity(results.len());
     for r in results {
-        let (row, t, n) = r?;
+        let (row, t, n, extra) = r?;
+        extras.push(extra);
         truth.push_str(&truth_row(&row, &t));
         truth.push('\n');
         bytes += n;
@@ -488,7 +502,7 @@ pub fn generate(a: &GenerateArgs, progress: bool) -> Result<GenerateSummary> {
     write_manifest(&mut manifest, &rows)?;
     write_file(&a.out.join(MANIFEST), &manifest)?;
     write_file(&a.out.join(TRUTH), truth.as_bytes())?;
-    Ok(GenerateSummary { traces: rows.len(), bytes, elapsed: start.elapsed(), threads })
+    Ok((GenerateSummary { traces: rows.len(), bytes, elapsed: start.elapsed(), threads }, extras))
 }
 
 fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {

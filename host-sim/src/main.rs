@@ -20,6 +20,12 @@ enum Command {
     Simulate(SimulateArgs),
     /// Generate a synthetic fleet data set (SPEC §7 layout, ADC traces, manifest, truth).
     Generate(host_sim::generate::GenerateArgs),
+    /// Model-discrepancy audit of a data set of releases of one locomotive (issue 9).
+    Audit(host_sim::audit::AuditArgs),
+    /// Hidden-effect sweep of the audit: hit rate over seeded random mechanisms.
+    AuditSweep(host_sim::audit_sweep::SweepArgs),
+    /// The audit on real pneumatic data (MetroPT-3 head, SPEC §8).
+    AuditMetro(host_sim::metro::MetroArgs),
     /// Print throughput figures (twin, monitor pipeline, generate) and write bench/host.md.
     Bench(host_sim::bench::BenchArgs),
     /// Replay a trace or a data set through the monitor pipeline (results CSV, summary, plots).
@@ -66,6 +72,9 @@ fn main() {
     let result = match cli.command {
         Command::Simulate(args) => cmd_simulate(&args),
         Command::Generate(args) => host_sim::generate::run(&args),
+        Command::Audit(args) => host_sim::audit::run(&args),
+        Command::AuditSweep(args) => host_sim::audit_sweep::run(&args),
+        Command::AuditMetro(args) => host_sim::metro::run(&args),
         Command::Bench(args) => host_sim::bench::run(&args),
         Command::Replay(args) => host_sim::replay::run(&args),
         Command::Can(args) => host_sim::can_cmd::run(&args),

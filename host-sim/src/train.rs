@@ -86,6 +86,12 @@ pub fn trace_features(dir: &Path, row: &ManifestRow) -> Result<TraceFeatures> {
         Samples::Adc(v) => v.iter().map(|&c| AdcCounts(c)).collect(),
         Samples::Bar(v) => v.iter().map(|&p| adc_from_bar(BarG(p))).collect(),
     };
+    features_from_adc(row, class, &adc)
+}
+
+/// Replays ADC samples (100 Hz from the release command) through the core and collects their
+/// features; for traces already in memory (e.g. while generating, see `host-sim demo`).
+pub fn features_from_adc(row: &ManifestRow, class: FaultClass, adc: &[AdcCounts]) -> Result<TraceFeatures> {
     let mut monitor = Monitor::new(&TwinParams::nominal()).map_err(|e| anyhow::anyhow!("{e}"))?;
     let mut fx = FeatureExtractor::new();
     let snap_index: Vec<usize> = SNAPSHOT_TIMES_S.iter().map(|t| (t * 100.0_f64).round() as usize).collect();

@@ -121,9 +121,7 @@ fn reordered_frames_are_flagged() {
     let mut frames = demo_frames();
     let fault_idx: Vec<usize> = (0..frames.len()).filter(|&i| is_fault(&frames[i].1)).collect();
     let (a, b) = (fault_idx[10], fault_idx[11]);
-    let fa = frames[a];
-    frames[a] = frames[b];
-    frames[b] = fa;
+    frames.swap(a, b);
     let (s, _) = display(&frames);
     assert_eq!(s.flagged.get("skipped_counter"), Some(&1), "{s}");
     assert_eq!(s.flagged.get("out_of_order"), Some(&1), "{s}");

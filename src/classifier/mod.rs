@@ -24,7 +24,7 @@
 pub mod model_weights;
 
 use crate::fault::FaultClass;
-use crate::features::{FeatureExtractor, N_OURS};
+use crate::features::{ReleaseFeatures, N_OURS};
 use crate::fixed::rshr;
 use crate::report::{NoDiagnosis, Verdict};
 
@@ -212,8 +212,8 @@ impl QuantModel<'_> {
 }
 
 /// The verdict on a release from its features so far, with the model compiled into the core.
-pub fn diagnose(features: &FeatureExtractor) -> Verdict {
-    diagnose_with(&model_weights::MODEL, features)
+pub fn diagnose(features: &impl AsRef<ReleaseFeatures>) -> Verdict {
+    diagnose_with(&model_weights::MODEL, features.as_ref())
 }
 
 /// The verdict on a release from its features so far:
@@ -224,7 +224,7 @@ pub fn diagnose(features: &FeatureExtractor) -> Verdict {
 /// 3. features outside the plausible range (or a model that does not fit them) are
 ///    [`NoDiagnosis::Implausible`];
 /// 4. otherwise the network's class and confidence.
-pub fn diagnose_with(model: &QuantModel<'_>, features: &FeatureExtractor) -> Verdict {
+pub fn diagnose_with(model: &QuantModel<'_>, features: &ReleaseFeatures) -> Verdict {
     let faulty = u64::from(features.faulty_samples()) * 1000;
     let too_many_faults = faulty > u64::from(features.samples()) * u64::from(MAX_FAULTY_PERMILLE);
     if let Some(fault) = features.last_fault() {
@@ -234,13 +234,14 @@ pub fn diagnose_with(model: &QuantModel<'_>, features: &FeatureExtractor) -> Ver
         // The latest sample is valid but too much of the release was not observed.
         return Verdict::CannotDiagnose(NoDiagnosis::SensorFault(fault));
     }
-    if features.t_now() < MIN_RELEASE_S {
+    if features.t_now() < MIN_RELEASE_S as f32 {
         return Verdict::CannotDiagnose(NoDiagnosis::TooShort);
     }
     if model.n_inputs() != N_OURS {
         return Verdict::CannotDiagnose(NoDiagnosis::Implausible);
     }
-    match model.classify(&features.ours()) {
+    // The features are f32; the input map widens them exactly.
+    match model.classify(&features.ours().map(f64::from)) {
         Ok(inf) => Verdict::Class { class: inf.class, confidence: inf.confidence },
         Err(_) => Verdict::CannotDiagnose(NoDiagnosis::Implausible),
     }
@@ -321,9 +322,9 @@ mod tests {
         assert_eq!(model_weights::MODEL.n_inputs(), N_OURS);
     }
 
-    fn release(adc: impl Fn(u32) -> AdcCounts, samples: u32) -> FeatureExtractor {
+    fn release(adc: impl Fn(u32) -> AdcCounts, samples: u32) -> ReleaseFeatures {
         let mut m = Monitor::new(&TwinParams::nominal()).unwrap();
-        let mut fx = FeatureExtractor::new();
+        let mut fx = ReleaseFeatures::new();
         for i in 0..samples {
             fx.update(&m.update(adc(i), true));
         }

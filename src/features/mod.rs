@@ -1,13 +1,18 @@
 //! Online features of a release: per-sample, streaming, no allocation.
 //!
-//! [`FeatureExtractor`] takes the monitor's output one sample at a time and keeps
+//! Two extractors share one definition of the classifier's inputs:
 //!
-//! - the paper's 21 statistics ([`stats`]) of the measured pressure (bar g) and of the
-//!   residual measured − twin (bar), for the paper's two statistical classifiers, and
-//! - the physics features of [`physics`] (filling slopes, level times, knees, plateau),
+//! - [`ReleaseFeatures`] is what the monitor carries on the brake controller: the physics
+//!   features of [`physics`] (filling slopes, level times, knees, plateau), the residual mean and
+//!   RMS (exact integer sums) and the online estimator's parameters, all in `f32` with
+//!   correctly rounded operations only (the Cortex-M4F's hardware FPU, the same bits on the
+//!   host). [`ReleaseFeatures::ours`] is the input vector of this project's classifier.
+//! - [`FeatureExtractor`] (host tools, training) wraps a [`ReleaseFeatures`] and adds the
+//!   paper's 21 statistics ([`stats`], `f64`) of the measured pressure and of the residual
+//!   measured − twin, for the paper's two statistical classifiers. Its `ours` is the very same
+//!   vector the firmware computes.
 //!
-//! all defined at every instant since the release command. [`FeatureExtractor::ours`] is the
-//! input vector of this project's classifier.
+//! Every feature is defined at every instant since the release command.
 
 pub mod physics;
 pub mod stats;
@@ -15,23 +20,22 @@ pub mod stats;
 use crate::estimator::Estimates;
 use crate::monitor::MonitorStep;
 use crate::sensor::SensorFault;
-use crate::twin::SAMPLE_PERIOD_S;
 use crate::units::PressureQ24;
 pub use physics::{PhaseTracker, N_PHYSICS, PHYSICS_NAMES};
 pub use stats::{SignalStats, N_STATS, STAT_NAMES};
 
-/// Number of online-estimator parameters in [`FeatureExtractor::theta`].
+/// Number of online-estimator parameters in [`ReleaseFeatures::theta`].
 pub const N_THETA: usize = 4;
 
-/// Names of [`FeatureExtractor::theta`], in order.
+/// Names of [`ReleaseFeatures::theta`], in order.
 pub const THETA_NAMES: [&str; N_THETA] =
     ["inflow_rate_bar_s", "leak_conductance_per_s", "plateau_bar_g", "supply_bar_g"];
 
-/// Length of [`FeatureExtractor::ours`]: the physics features, residual mean and RMS, and the
+/// Length of [`ReleaseFeatures::ours`]: the physics features, residual mean and RMS, and the
 /// online estimator's parameters.
 pub const N_OURS: usize = N_PHYSICS + 2 + N_THETA;
 
-/// Names of [`FeatureExtractor::ours`], in order.
+/// Names of [`ReleaseFeatures::ours`], in order.
 pub const OURS_NAMES: [&str; N_OURS] = {
     let mut names = [""; N_OURS];
     let mut i = 0;
@@ -49,24 +53,36 @@ pub const OURS_NAMES: [&str; N_OURS] = {
     names
 };
 
-/// Streaming feature extractor of one release.
+/// Samples per second (the monitor's 100 Hz clock): `t = index / 100`.
+const SAMPLES_PER_S: f32 = 100.0;
+/// Right shift from Q7.24 to the Q16 residual of the RMS sums.
+const RESIDUAL_SHIFT: u32 = 8;
+/// One bar in the Q16 residual unit.
+const RESIDUAL_ONE_BAR: f32 = (PressureQ24::ONE_BAR >> RESIDUAL_SHIFT) as f32;
+
+/// The classifier's features of one release, as the monitor computes them on the target.
+///
+/// Per sample: one block/band update of the [`PhaseTracker`] in `f32` and two integer sums of
+/// the residual. Statistics that need a square root or a logarithm are evaluated only when
+/// read ([`Self::ours`]).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct FeatureExtractor {
-    raw: SignalStats,
-    residual: SignalStats,
+pub struct ReleaseFeatures {
     phase: PhaseTracker,
     samples: u32,
     faulty_samples: u32,
     last_fault: Option<SensorFault>,
     seen_fault: Option<SensorFault>,
-    theta: [f64; N_THETA],
+    /// Valid samples in the residual sums.
+    residual_n: u32,
+    /// Σ residual, Q16 bar (saturating; |residual| < 2^21 in Q16, so exact for 2^42 samples).
+    residual_sum_q16: i64,
+    /// Σ residual², Q32 bar² (saturating).
+    residual_sq_sum_q32: u64,
+    theta: [f32; N_THETA],
 }
 
-/// Bar per Q24 LSB.
-const BAR_PER_Q24: f64 = 1.0 / PressureQ24::ONE_BAR as f64;
-
-impl FeatureExtractor {
-    /// An extractor at the release command.
+impl ReleaseFeatures {
+    /// Features at the release command.
     pub fn new() -> Self {
         Self::default()
     }
@@ -86,27 +102,29 @@ impl FeatureExtractor {
         self.set_estimates(&step.estimates);
     }
 
-    /// Records the online estimator's current parameters (unknown ones read 0).
+    /// Records the online estimator's current parameters (unknown or non-finite ones read 0).
     pub fn set_estimates(&mut self, e: &Estimates) {
-        let v = |x: Option<f32>| x.filter(|v| v.is_finite()).map_or(0.0, f64::from);
+        let v = |x: Option<f32>| x.filter(|v| v.is_finite()).unwrap_or(0.0);
         self.theta = [v(e.inflow_rate_bar_s), v(e.leak_conductance_per_s), v(e.plateau_bar_g), v(e.supply_bar_g)];
     }
 
     /// The online estimator's parameters ([`THETA_NAMES`]), 0 where not identified yet.
-    pub fn theta(&self) -> [f64; N_THETA] {
+    pub fn theta(&self) -> [f32; N_THETA] {
         self.theta
     }
 
     /// Adds the sample taken `index` samples after the release command: the measured pressure
     /// (or the sensor fault) and the residual measured − twin (Q7.24 bar).
     pub fn push(&mut self, index: u32, measured: Result<PressureQ24, SensorFault>, residual_q24: i32) {
-        let t = f64::from(index) * SAMPLE_PERIOD_S;
+        let t = index as f32 / SAMPLES_PER_S;
         self.samples = self.samples.saturating_add(1);
         match measured {
             Ok(p) => {
-                let p_bar_g = p.to_bar_g().0;
-                self.raw.push(p_bar_g);
-                self.residual.push(f64::from(residual_q24) * BAR_PER_Q24);
+                let p_bar_g = gauge_bar(p);
+                let r = i64::from(residual_q24 >> RESIDUAL_SHIFT);
+                self.residual_n = self.residual_n.saturating_add(1);
+                self.residual_sum_q16 = self.residual_sum_q16.saturating_add(r);
+                self.residual_sq_sum_q32 = self.residual_sq_sum_q32.saturating_add(r.unsigned_abs().pow(2));
                 self.phase.push(t, Some(p_bar_g));
                 self.last_fault = None;
             }
@@ -140,8 +158,115 @@ impl FeatureExtractor {
     }
 
     /// Seconds since the release command (time of the latest sample).
-    pub fn t_now(&self) -> f64 {
+    pub fn t_now(&self) -> f32 {
         self.phase.t_now()
+    }
+
+    /// The physics tracker.
+    pub fn phase(&self) -> &PhaseTracker {
+        &self.phase
+    }
+
+    /// Mean and RMS of the residual measured − twin over the valid samples, bar (0 before the
+    /// first one).
+    pub fn residual_mean_rms(&self) -> (f32, f32) {
+        if self.residual_n == 0 {
+            return (0.0, 0.0);
+        }
+        let n = self.residual_n as f32;
+        let mean = self.residual_sum_q16 as f32 / n / RESIDUAL_ONE_BAR;
+        let rms = libm::sqrtf(self.residual_sq_sum_q32 as f32 / n) / RESIDUAL_ONE_BAR;
+        (mean, rms)
+    }
+
+    /// Input vector of this project's classifier ([`OURS_NAMES`]).
+    pub fn ours(&self) -> [f32; N_OURS] {
+        let mut v = [0.0; N_OURS];
+        let (physics, rest) = v.split_at_mut(N_PHYSICS);
+        physics.copy_from_slice(&self.phase.values());
+        let (mean, rms) = self.residual_mean_rms();
+        let (residual, theta) = rest.split_at_mut(2);
+        residual.copy_from_slice(&[mean, rms]);
+        theta.copy_from_slice(&self.theta);
+        v
+    }
+}
+
+impl AsRef<ReleaseFeatures> for ReleaseFeatures {
+    fn as_ref(&self) -> &ReleaseFeatures {
+        self
+    }
+}
+
+/// Gauge pressure in bar of a Q7.24 absolute pressure, `f32` (exact power-of-two scaling of
+/// the correctly rounded integer conversion).
+fn gauge_bar(p: PressureQ24) -> f32 {
+    p.0.saturating_sub(PressureQ24::ONE_BAR) as f32 * (1.0 / PressureQ24::ONE_BAR as f32)
+}
+
+/// Host-side extractor: the classifier's [`ReleaseFeatures`] plus the paper's 21 statistics
+/// of the measured pressure (bar g) and of the residual (bar), in `f64`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FeatureExtractor {
+    release: ReleaseFeatures,
+    raw: SignalStats,
+    residual: SignalStats,
+}
+
+/// Bar per Q24 LSB.
+const BAR_PER_Q24: f64 = 1.0 / PressureQ24::ONE_BAR as f64;
+
+impl FeatureExtractor {
+    /// An extractor at the release command.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Forgets everything (a new release command).
+    pub fn reset(&mut self) {
+        *self = Self::default();
+    }
+
+    /// Adds one monitor step (see [`ReleaseFeatures::update`]).
+    pub fn update(&mut self, step: &MonitorStep) {
+        if step.samples_since_release == 0 {
+            self.reset();
+        }
+        self.release.update(step);
+        if let Ok(p) = step.measured {
+            self.raw.push(p.to_bar_g().0);
+            self.residual.push(f64::from(step.residual_q24) * BAR_PER_Q24);
+        }
+    }
+
+    /// The classifier's features (what the monitor computes).
+    pub fn release(&self) -> &ReleaseFeatures {
+        &self.release
+    }
+
+    /// The online estimator's parameters ([`THETA_NAMES`]), 0 where not identified yet.
+    pub fn theta(&self) -> [f64; N_THETA] {
+        self.release.theta.map(f64::from)
+    }
+
+    /// Samples seen since the release command (valid or not).
+    pub fn samples(&self) -> u32 {
+        self.release.samples
+    }
+
+    /// Samples that were sensor faults.
+    pub fn faulty_samples(&self) -> u32 {
+        self.release.faulty_samples
+    }
+
+    /// The fault of the latest sample, if it was one.
+    pub fn last_fault(&self) -> Option<SensorFault> {
+        self.release.last_fault
+    }
+
+    /// The physics tracker.
+    pub fn phase(&self) -> &PhaseTracker {
+        &self.release.phase
     }
 
     /// The 21 statistics of the measured pressure (bar g).
@@ -154,20 +279,15 @@ impl FeatureExtractor {
         self.residual.values()
     }
 
-    /// The physics tracker.
-    pub fn phase(&self) -> &PhaseTracker {
-        &self.phase
-    }
-
-    /// Input vector of this project's classifier ([`OURS_NAMES`]).
+    /// Input vector of this project's classifier ([`OURS_NAMES`]), widened exactly to `f64`.
     pub fn ours(&self) -> [f64; N_OURS] {
-        let mut v = [0.0; N_OURS];
-        v[..N_PHYSICS].copy_from_slice(&self.phase.values());
-        let r = self.residual.values();
-        v[N_PHYSICS] = r[0];
-        v[N_PHYSICS + 1] = r[6];
-        v[N_PHYSICS + 2..].copy_from_slice(&self.theta);
-        v
+        self.release.ours().map(f64::from)
+    }
+}
+
+impl AsRef<ReleaseFeatures> for FeatureExtractor {
+    fn as_ref(&self) -> &ReleaseFeatures {
+        &self.release
     }
 }
 

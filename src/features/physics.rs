@@ -15,14 +15,21 @@
 //!   so that a 0.05 bar deficit (0.5 mm leak) stays visible after int8 quantization.
 //!
 //! Every value is defined at any time since the release command, so a classifier can run on
-//! partial releases (early diagnosis). Arithmetic is `f64` `+ − × ÷` plus `libm::log`
-//! (deterministic on every target).
+//! partial releases (early diagnosis).
+//!
+//! Arithmetic is `f32` (the Cortex-M4F's hardware FPU; an `f64` tracker costs ~10 000
+//! instructions a sample there in software floating point): only `+ − × ÷` (IEEE-754 correctly
+//! rounded on x86-64 SSE and on the M4F, and rustc never contracts to FMA) plus `libm::logf`
+//! (the same software routine on every target), so host and firmware get the same bits. Time
+//! is kept as an integer sample index and turned into seconds by one division per use; line
+//! fits use the numerically stable one-pass (Welford) co-moment update, so a long band loses
+//! no precision to cancellation in single precision.
 
 /// Levels (bar g) whose first crossing time is a feature.
-pub const LEVELS_BAR: [f64; 10] = [0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 7.4, 7.6];
+pub const LEVELS_BAR: [f32; 10] = [0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 7.4, 7.6];
 /// Pressure bands (bar g, `[lo, hi)`) whose least-squares filling slope is a feature. The
 /// first four lie below breakaway (fixed volume), the last three in the stroke.
-pub const BANDS_BAR: [(f64, f64); 7] =
+pub const BANDS_BAR: [(f32, f32); 7] =
     [(0.3, 1.0), (1.0, 2.0), (2.0, 3.0), (3.0, 3.6), (4.6, 5.4), (5.4, 6.2), (6.2, 7.0)];
 /// Samples per smoothing block (0.25 s at 100 Hz).
 pub const BLOCK_SAMPLES: u32 = 25;
@@ -31,73 +38,67 @@ const SLOPE_SPAN: usize = 4;
 /// Minimum samples in a band before its slope counts.
 const BAND_MIN_SAMPLES: u32 = 20;
 /// Regulator reference for the plateau deficit, bar g (above every regulator setting).
-pub const DEFICIT_REF_BAR: f64 = 7.8;
+pub const DEFICIT_REF_BAR: f32 = 7.8;
 /// Breakaway knee: the 1 s slope falls below this fraction of the filling slope.
-const KNEE_DROP: f64 = 0.6;
+const KNEE_DROP: f32 = 0.6;
 /// End-stop knee: the 1 s slope rises above this multiple of the slowest stroke slope.
-const KNEE_RISE: f64 = 1.5;
+const KNEE_RISE: f32 = 1.5;
 
-/// Online least-squares line fit of p against t.
+/// Online least-squares line fit of p against t (Welford co-moments: means and centred sums).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 struct LineFit {
     n: u32,
-    t0: f64,
-    st: f64,
-    sp: f64,
-    stt: f64,
-    stp: f64,
+    mean_t: f32,
+    mean_p: f32,
+    /// Σ (t − t̄)², s².
+    ctt: f32,
+    /// Σ (t − t̄)(p − p̄), bar s.
+    ctp: f32,
 }
 
 impl LineFit {
-    fn push(&mut self, t: f64, p: f64) {
-        if self.n == 0 {
-            self.t0 = t;
-        }
-        let t = t - self.t0; // keep the sums small: no cancellation in the slope
-        self.n += 1;
-        self.st += t;
-        self.sp += p;
-        self.stt += t * t;
-        self.stp += t * p;
+    fn push(&mut self, t: f32, p: f32) {
+        self.n = self.n.saturating_add(1);
+        let n = self.n as f32;
+        let dt = t - self.mean_t;
+        self.mean_t += dt / n;
+        let dp = p - self.mean_p;
+        self.mean_p += dp / n;
+        self.ctt += dt * (t - self.mean_t);
+        self.ctp += dt * (p - self.mean_p);
     }
 
     /// Slope, bar/s (0 with too few samples).
-    fn slope(&self) -> f64 {
-        if self.n < BAND_MIN_SAMPLES {
+    fn slope(&self) -> f32 {
+        if self.n < BAND_MIN_SAMPLES || !(self.ctt > 0.0) {
             return 0.0;
         }
-        let n = f64::from(self.n);
-        let den = n * self.stt - self.st * self.st;
-        if den > 0.0 {
-            (n * self.stp - self.st * self.sp) / den
-        } else {
-            0.0
-        }
+        self.ctp / self.ctt
     }
 }
 
 /// Running physics features of one release.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct PhaseTracker {
-    t_now: f64,
-    block_sum: f64,
-    block_t_sum: f64,
+    t_now: f32,
+    block_sum: f32,
+    block_t_sum: f32,
     block_n: u32,
     block_index: u32,
     /// Last block means and times, newest at `ring_head`.
-    ring_p: [f64; SLOPE_SPAN + 1],
-    ring_t: [f64; SLOPE_SPAN + 1],
+    ring_p: [f32; SLOPE_SPAN + 1],
+    ring_t: [f32; SLOPE_SPAN + 1],
     ring_head: usize,
     blocks_seen: u32,
-    cross: [Option<f64>; LEVELS_BAR.len()],
+    cross: [Option<f32>; LEVELS_BAR.len()],
     bands: [LineFit; BANDS_BAR.len()],
-    p_now: f64,
-    slope_now: f64,
-    p_max: f64,
-    fill_slope_max: f64,
-    breakaway: Option<(f64, f64)>,
-    stroke_slope_min: f64,
-    end_stop: Option<(f64, f64)>,
+    p_now: f32,
+    slope_now: f32,
+    p_max: f32,
+    fill_slope_max: f32,
+    breakaway: Option<(f32, f32)>,
+    stroke_slope_min: f32,
+    end_stop: Option<(f32, f32)>,
 }
 
 /// Number of physics features in [`PhaseTracker::values`].
@@ -143,7 +144,7 @@ impl PhaseTracker {
 
     /// Adds the sample taken at `t_s` since the release command; `p_bar_g` is `None` for a
     /// sensor-fault sample (time advances, nothing else changes).
-    pub fn push(&mut self, t_s: f64, p_bar_g: Option<f64>) {
+    pub fn push(&mut self, t_s: f32, p_bar_g: Option<f32>) {
         self.t_now = t_s;
         if let Some(p) = p_bar_g.filter(|p| p.is_finite()) {
             for (band, &(lo, hi)) in self.bands.iter_mut().zip(BANDS_BAR.iter()) {
@@ -159,7 +160,7 @@ impl PhaseTracker {
         if self.block_index >= BLOCK_SAMPLES {
             self.block_index = 0;
             if self.block_n > BLOCK_SAMPLES / 2 {
-                let n = f64::from(self.block_n);
+                let n = self.block_n as f32;
                 self.close_block(self.block_sum / n, self.block_t_sum / n);
             }
             self.block_sum = 0.0;
@@ -168,7 +169,7 @@ impl PhaseTracker {
         }
     }
 
-    fn close_block(&mut self, p: f64, t: f64) {
+    fn close_block(&mut self, p: f32, t: f32) {
         let prev =
             if self.blocks_seen > 0 { Some((self.ring_p[self.ring_head], self.ring_t[self.ring_head])) } else { None };
         for (level, cross) in LEVELS_BAR.iter().zip(self.cross.iter_mut()) {
@@ -193,7 +194,7 @@ impl PhaseTracker {
         }
     }
 
-    fn track_knees(&mut self, t: f64, p: f64) {
+    fn track_knees(&mut self, t: f32, p: f32) {
         let s = self.slope_now;
         match (self.breakaway, self.end_stop) {
             (None, _) => {
@@ -216,33 +217,33 @@ impl PhaseTracker {
     }
 
     /// Time of the last sample, s.
-    pub fn t_now(&self) -> f64 {
+    pub fn t_now(&self) -> f32 {
         self.t_now
     }
 
     /// Smoothed (0.25 s block mean) current pressure, bar g.
-    pub fn p_now(&self) -> f64 {
+    pub fn p_now(&self) -> f32 {
         self.p_now
     }
 
     /// Breakaway knee (time s, pressure bar g) if detected.
-    pub fn breakaway(&self) -> Option<(f64, f64)> {
+    pub fn breakaway(&self) -> Option<(f32, f32)> {
         self.breakaway
     }
 
     /// End-stop knee (time s, pressure bar g) if detected.
-    pub fn end_stop(&self) -> Option<(f64, f64)> {
+    pub fn end_stop(&self) -> Option<(f32, f32)> {
         self.end_stop
     }
 
     /// Least-squares slope in band `i` of [`BANDS_BAR`], bar/s (0 if not enough samples).
-    pub fn band_slope(&self, i: usize) -> f64 {
+    pub fn band_slope(&self, i: usize) -> f32 {
         self.bands.get(i).map_or(0.0, LineFit::slope)
     }
 
     /// The features in [`PHYSICS_NAMES`] order. Levels not reached yet and knees not seen yet
     /// read as the current time (censored); missing slopes read 0.
-    pub fn values(&self) -> [f64; N_PHYSICS] {
+    pub fn values(&self) -> [f32; N_PHYSICS] {
         let mut v = [0.0; N_PHYSICS];
         let t = self.t_now;
         v[0] = t;
@@ -257,11 +258,11 @@ impl PhaseTracker {
         v[o] = self.p_now;
         v[o + 1] = self.slope_now;
         v[o + 2] = self.p_max;
-        v[o + 3] = libm::log((DEFICIT_REF_BAR - self.p_now).clamp(0.01, 10.0));
+        v[o + 3] = libm::logf((DEFICIT_REF_BAR - self.p_now).clamp(0.01, 10.0));
         v[o + 4] = self.breakaway.map_or(0.0, |k| k.1);
         v[o + 5] = self.breakaway.map_or(t, |k| k.0);
         v[o + 6] = self.end_stop.map_or(t, |k| k.0);
-        let ratio = |num: f64, den: f64| if num > 0.0 && den > 0.0 { num / den } else { 0.0 };
+        let ratio = |num: f32, den: f32| if num > 0.0 && den > 0.0 { num / den } else { 0.0 };
         let s = |i| self.band_slope(i);
         v[o + 7] = ratio(s(2), s(1));
         v[o + 8] = ratio(s(3), s(1));
@@ -275,7 +276,7 @@ mod tests {
     use super::*;
 
     /// Piecewise-linear "release": 0.8 bar/s to 4 bar, 0.2 bar/s to 7 bar, then flat.
-    fn synthetic(t: f64) -> f64 {
+    fn synthetic(t: f32) -> f32 {
         if t < 5.0 {
             0.8 * t
         } else if t < 20.0 {
@@ -289,25 +290,25 @@ mod tests {
     fn slopes_levels_and_knees_of_a_piecewise_release() {
         let mut tr = PhaseTracker::new();
         for i in 0..6000 {
-            let t = f64::from(i) * 0.01;
+            let t = i as f32 / 100.0;
             tr.push(t, Some(synthetic(t)));
         }
         let v = tr.values();
-        assert!((v[0] - 59.99).abs() < 1e-9);
+        assert!((v[0] - 59.99).abs() < 1e-5);
         assert!((v[2] - 1.25).abs() < 0.02, "t_1bar {}", v[2]); // 1 bar at 1.25 s
                                                                 // A 0.25 s block straddles the knee: the interpolated crossing lags by < 0.1 s.
         assert!((v[5] - 5.0).abs() < 0.1, "t_4bar {}", v[5]);
         assert!((v[8] - 20.0).abs() < 0.15, "t_7bar {}", v[8]); // block mean reaches 7 at the plateau
         assert_eq!(v[9], 59.99, "7.4 bar never reached: censored");
         for i in 0..4 {
-            assert!((tr.band_slope(i) - 0.8).abs() < 1e-6, "band {i}: {}", tr.band_slope(i));
+            assert!((tr.band_slope(i) - 0.8).abs() < 1e-4, "band {i}: {}", tr.band_slope(i));
         }
-        assert!((tr.band_slope(4) - 0.2).abs() < 1e-6);
+        assert!((tr.band_slope(4) - 0.2).abs() < 1e-4);
         let (tb, pb) = tr.breakaway().unwrap();
         assert!((5.0..6.0).contains(&tb) && (4.0..4.3).contains(&pb), "{tb} {pb}");
-        assert!((v[25] - 1.0).abs() < 1e-6 && (v[26] - 1.0).abs() < 1e-6);
-        assert!((v[18] - 7.0).abs() < 1e-9);
-        assert!((v[21] - (0.8f64).ln()).abs() < 1e-9);
+        assert!((v[25] - 1.0).abs() < 1e-4 && (v[26] - 1.0).abs() < 1e-4);
+        assert!((v[18] - 7.0).abs() < 1e-5);
+        assert!((v[21] - 0.8f32.ln()).abs() < 1e-5);
     }
 
     #[test]
@@ -315,7 +316,7 @@ mod tests {
         let mut tr = PhaseTracker::new();
         assert!(tr.values().iter().all(|v| v.is_finite()));
         for i in 0..300 {
-            let t = f64::from(i) * 0.01;
+            let t = i as f32 / 100.0;
             tr.push(t, if i % 2 == 0 { Some(0.8 * t) } else { None });
             assert!(tr.values().iter().all(|v| v.is_finite()));
         }
@@ -324,7 +325,7 @@ mod tests {
         assert!((v[1] - 0.625).abs() < 0.03, "{}", v[1]);
         assert!((v[3] - 2.5).abs() < 0.03, "{}", v[3]);
         assert_eq!(v[4], 2.99, "3 bar not reached by 3 s: censored");
-        tr.push(3.0, Some(f64::NAN));
+        tr.push(3.0, Some(f32::NAN));
         assert!(tr.values().iter().all(|v| v.is_finite()));
     }
 }
