@@ -12,6 +12,8 @@
 //! - [`monitor`]: the per-sample pipeline (ADC in, reports out).
 //! - [`report`]: fault and status reports, independent of the CAN layout.
 //! - [`can`]: CAN frames to the cab display (DBC layout, E2E, encoder, decoder, schedule).
+//! - [`pipeline`]: the whole per-sample path (monitor, diagnosis policy, CAN schedule) and the
+//!   candump log format, shared by the firmware and `host-sim replay --can-log`.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
@@ -28,6 +30,7 @@ pub mod fixed;
 pub mod metrics;
 pub mod monitor;
 pub mod params;
+pub mod pipeline;
 pub mod report;
 pub mod sensor;
 pub mod twin;

@@ -453,8 +453,7 @@ impl Problem<'_> {
 
     fn fit(&self, effects: &[Effect], starts: &[Vec<f64>], max_iter: usize) -> Option<(LmResult, usize)> {
         let f = |x: &[f64]| self.residual(x, effects);
-        let results: Vec<LmResult> =
-            starts.par_iter().filter_map(|x0| levenberg_marquardt(&f, x0, max_iter)).collect();
+        let results: Vec<LmResult> = starts.par_iter().filter_map(|x0| levenberg_marquardt(&f, x0, max_iter)).collect();
         let evals = results.iter().map(|r| r.evaluations).sum();
         results.into_iter().min_by(|a, b| a.rss.total_cmp(&b.rss)).map(|r| (r, evals))
     }
@@ -696,7 +695,8 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     let prob = Problem { data };
     let nb = BASE_NAMES.len();
     // Base: a few starts in the tolerance box.
-    let base_starts: Vec<Vec<f64>> = vec![vec![0.5; nb], vec![0.3, 0.7, 0.5, 0.5, 0.5, 0.5], vec![0.7, 0.3, 0.5, 0.5, 0.5, 0.5]];
+    let base_starts: Vec<Vec<f64>> =
+        vec![vec![0.5; nb], vec![0.3, 0.7, 0.5, 0.5, 0.5, 0.5], vec![0.7, 0.3, 0.5, 0.5, 0.5, 0.5]];
     let (base_lm, base_evals) = prob.fit(&[], &base_starts, opts.max_iter).context("the base twin cannot run")?;
     let n = base_lm.residual.len();
     let mk = |name: String, effects: &[Effect], lm: &LmResult, evals: usize| CandidateFit {
@@ -712,11 +712,8 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     let singles: Vec<(Vec<Effect>, LmResult, usize)> = Effect::ALL
         .par_iter()
         .filter_map(|&e| {
-            let starts: Vec<Vec<f64>> = e
-                .starts()
-                .iter()
-                .map(|&m| base_lm.x.iter().copied().chain([effect_u(e, m)]).collect())
-                .collect();
+            let starts: Vec<Vec<f64>> =
+                e.starts().iter().map(|&m| base_lm.x.iter().copied().chain([effect_u(e, m)]).collect()).collect();
             prob.fit(&[e], &starts, opts.max_iter).map(|(lm, ev)| (vec![e], lm, ev))
         })
         .collect();
@@ -796,12 +793,8 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         }
     }
     let cause = if chosen.effects.is_empty() { "none".to_owned() } else { chosen.name.clone() };
-    let chosen_x: Vec<f64> = chosen
-        .base_u
-        .iter()
-        .copied()
-        .chain(chosen.effects.iter().map(|&(e, v, _)| effect_u(e, v)))
-        .collect();
+    let chosen_x: Vec<f64> =
+        chosen.base_u.iter().copied().chain(chosen.effects.iter().map(|&(e, v, _)| effect_u(e, v))).collect();
     let chosen_effects: Vec<Effect> = chosen.effects.iter().map(|e| e.0).collect();
     let base_preds = prob.predictions(&base_lm.x, &[]);
     let chosen_preds = prob.predictions(&chosen_x, &chosen_effects);
@@ -864,7 +857,13 @@ impl AuditOutcome {
             .cause_effects
             .iter()
             .map(|(e, v, s)| {
-                format!(r#"{{"name": "{}", "magnitude": {}, "uncertainty": {}, "unit": "{}"}}"#, e, num(*v), num(*s), e.unit())
+                format!(
+                    r#"{{"name": "{}", "magnitude": {}, "uncertainty": {}, "unit": "{}"}}"#,
+                    e,
+                    num(*v),
+                    num(*s),
+                    e.unit()
+                )
             })
             .collect::<Vec<_>>()
             .join(", ");
@@ -907,7 +906,11 @@ impl AuditOutcome {
     pub fn summary(&self) -> String {
         let d = &self.diagnostics;
         let mut s = String::new();
-        let _ = writeln!(s, "noise σ per trace {:.4} bar (estimated), of the mean {:.4} bar", d.sigma_trace_bar, d.sigma_mean_bar);
+        let _ = writeln!(
+            s,
+            "noise σ per trace {:.4} bar (estimated), of the mean {:.4} bar",
+            d.sigma_trace_bar, d.sigma_mean_bar
+        );
         let _ = writeln!(s, "base fit: NMSE {:.3} %, RMS residual {:.4} bar", self.base.nmse_pct, d.rms_bar);
         let _ = writeln!(s, "  fitted base (box 0..1, 0.5 = documented/nominal): {}", fmt_base(&self.base.base_u));
         for p in &d.phases {
@@ -922,7 +925,8 @@ impl AuditOutcome {
             "  Ljung–Box Q(20) = {:.1} (white below 31.4); worst 1 s window at {:.0} s (RMS {:.4} bar)",
             d.ljung_box_q, d.worst_window.0, d.worst_window.1
         );
-        let _ = writeln!(s, "  residual × pressure rate: max |ccf| {:.2} at lag {} samples", d.ccf_rate.0, d.ccf_rate.1);
+        let _ =
+            writeln!(s, "  residual × pressure rate: max |ccf| {:.2} at lag {} samples", d.ccf_rate.0, d.ccf_rate.1);
         let _ = writeln!(
             s,
             "  residual × phase: {}",
@@ -937,7 +941,11 @@ impl AuditOutcome {
                 c.delta_bic,
                 self.base.rss / c.rss,
                 c.nmse_pct,
-                c.effects.iter().map(|(e, v, u)| format!("{e} = {v:.4} ± {u:.4} {}", e.unit())).collect::<Vec<_>>().join(", ")
+                c.effects
+                    .iter()
+                    .map(|(e, v, u)| format!("{e} = {v:.4} ± {u:.4} {}", e.unit()))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             );
         }
         let _ = writeln!(
@@ -991,7 +999,11 @@ pub fn run(a: &AuditArgs) -> Result<()> {
     let data = load_dataset(&a.path)?;
     let out = audit(&data, AuditOptions { pairs: !a.no_pairs, ..AuditOptions::default() })?;
     print!("{}", out.summary());
-    eprintln!("audit of {} traces in {:.1} s", data.groups.iter().map(|g| g.files.len()).sum::<usize>(), start.elapsed().as_secs_f64());
+    eprintln!(
+        "audit of {} traces in {:.1} s",
+        data.groups.iter().map(|g| g.files.len()).sum::<usize>(),
+        start.elapsed().as_secs_f64()
+    );
     write_outputs(&out, &data.source, a.json.as_deref(), a.plot.as_deref(), a.report.as_deref())
 }
 

@@ -201,7 +201,12 @@ pub fn html_report(out: &AuditOutcome, source: &str) -> Result<String> {
         out.n_eff, out.n
     );
     for c in &out.ranking {
-        let m = c.effects.iter().map(|(ef, v, u)| format!("{ef} = {v:.4} ± {u:.4} {}", ef.unit())).collect::<Vec<_>>().join(", ");
+        let m = c
+            .effects
+            .iter()
+            .map(|(ef, v, u)| format!("{ef} = {v:.4} ± {u:.4} {}", ef.unit()))
+            .collect::<Vec<_>>()
+            .join(", ");
         let _ = write!(
             h,
             "<tr><td>{}</td><td>{:.1}</td><td>{:.2}</td><td>{:.3} %</td><td>{}</td></tr>",
@@ -218,6 +223,9 @@ pub fn html_report(out: &AuditOutcome, source: &str) -> Result<String> {
         h.push_str(&residual_svg(out, c)?);
     }
     h.push_str(&acf_svg(out)?);
-    let _ = write!(h, "<p>Red: base, blue: extended; green lines: phase boundaries (breakaway, end stop).</p></body></html>\n");
+    let _ = write!(
+        h,
+        "<p>Red: base, blue: extended; green lines: phase boundaries (breakaway, end stop).</p></body></html>\n"
+    );
     Ok(h)
 }

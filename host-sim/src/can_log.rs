@@ -13,7 +13,6 @@ use embedded_can::{ExtendedId, Frame, Id, StandardId};
 use pbm::can::{CanFrame, CanReporter};
 use pbm::monitor::Monitor;
 use pbm::report::Verdict;
-use std::fmt::Write as _;
 use std::io::{BufRead, Write};
 
 /// The interface name written when none is given.
@@ -47,31 +46,20 @@ impl std::fmt::Display for LogError {
 
 impl std::error::Error for LogError {}
 
-/// Formats the time stamp as candump does: 10-digit seconds, 6-digit microseconds.
+/// Formats the time stamp as candump does: 10-digit seconds, 6-digit microseconds (the
+/// core's [`pbm::pipeline::candump`] formatter, shared with the firmware).
 pub fn format_time(time_us: u64) -> String {
-    format!("({:010}.{:06})", time_us / 1_000_000, time_us % 1_000_000)
+    pbm::pipeline::candump::Time(time_us).to_string()
 }
 
 /// Formats a frame as `ID#DATA` (or `ID#R`, `ID#R<len>` for a remote frame).
 pub fn format_frame(frame: &CanFrame) -> String {
-    let mut s =
-        if frame.is_extended() { format!("{:08X}#", frame.raw_id()) } else { format!("{:03X}#", frame.raw_id()) };
-    if frame.is_remote_frame() {
-        s.push('R');
-        if frame.dlc() > 0 {
-            let _ = write!(s, "{}", frame.dlc());
-        }
-    } else {
-        for b in frame.data() {
-            let _ = write!(s, "{b:02X}");
-        }
-    }
-    s
+    pbm::pipeline::candump::FrameText(frame).to_string()
 }
 
 /// One complete log line (without the newline).
 pub fn format_line(time_us: u64, iface: &str, frame: &CanFrame) -> String {
-    format!("{} {} {}", format_time(time_us), iface, format_frame(frame))
+    pbm::pipeline::candump::Line { time_us, iface, frame }.to_string()
 }
 
 fn parse_time(tok: &str) -> Result<u64, String> {
@@ -286,45 +274,44 @@ pub fn time_us(t_s: f64) -> u64 {
 /// Gap between two traces in a replay log, µs.
 pub const TRACE_GAP_US: u64 = 10_000_000;
 
-/// `host-sim replay --can-log FILE`: replays each item's trace through a fresh [`Monitor`]
-/// (as `replay` does, every sample a release sample) and writes the frames of one continuous
-/// CAN stream (one reporter, counters running on) to a candump log. Trace `k` starts
-/// [`TRACE_GAP_US`] after trace `k − 1` ended. `verdict` gives the diagnosis to report after
-/// each sample (the classifier's, once the monitor has one; `None` sends status frames only).
-/// Returns the number of frames written.
-pub fn write_replay_can_log(
-    path: &std::path::Path,
-    items: &[crate::replay::ReplayItem],
-    mut verdict: impl FnMut(&pbm::monitor::MonitorStep, &Monitor) -> Option<Verdict>,
-) -> anyhow::Result<u64> {
+/// `host-sim replay --can-log FILE`: replays each item's trace (every sample a release
+/// sample, as `replay` does) through a fresh [`pbm::pipeline::Pipeline`], the per-sample path
+/// the firmware runs (monitor, diagnosis policy, transmit schedule), and writes its frames to a
+/// candump log; the end of each trace closes its diagnosis ([`pbm::pipeline::Pipeline::close`]).
+/// Time stamps are the monitor's sample clock (sample `i` at `i` × 10 ms), as in the firmware;
+/// trace `k` starts [`TRACE_GAP_US`] after the last sample of trace `k − 1`. For one trace the
+/// log is byte for byte what the firmware writes in QEMU. Returns the number of frames written.
+pub fn write_replay_can_log(path: &std::path::Path, items: &[crate::replay::ReplayItem]) -> anyhow::Result<u64> {
     use anyhow::Context as _;
     let file = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    let mut rec = CanRecorder::new(CandumpWriter::new(std::io::BufWriter::new(file), DEFAULT_IFACE));
+    let mut sink = CandumpWriter::new(std::io::BufWriter::new(file), DEFAULT_IFACE);
     let mut base_us = 0u64;
     for item in items {
         let trace = crate::trace::read_trace(&item.path)?;
         trace.check_sample_period(pbm::twin::SAMPLE_PERIOD_S, crate::replay::PERIOD_TOLERANCE_S)?;
-        let mut monitor =
-            Monitor::new(&pbm::TwinParams::nominal()).map_err(|e| anyhow::anyhow!("nominal twin: {e}"))?;
-        let t0 = trace.t_s.first().copied().unwrap_or(0.0);
+        let adc: Vec<u16> = match &trace.samples {
+            crate::trace::Samples::Adc(v) => v.clone(),
+            crate::trace::Samples::Bar(v) => v.iter().map(|&p| pbm::sensor::adc_from_bar(pbm::BarG(p)).0).collect(),
+        };
+        let mut pipeline = pbm::pipeline::Pipeline::nominal().map_err(|e| anyhow::anyhow!("nominal twin: {e}"))?;
         let mut last_us = base_us;
-        for (i, &t) in trace.t_s.iter().enumerate() {
-            let adc = match &trace.samples {
-                crate::trace::Samples::Adc(v) => v.get(i).copied().unwrap_or(0),
-                crate::trace::Samples::Bar(v) => {
-                    pbm::sensor::adc_from_bar(pbm::BarG(v.get(i).copied().unwrap_or(0.0))).0
-                }
-            };
-            let step = monitor.update(pbm::AdcCounts(adc), true);
-            last_us = base_us + time_us(t - t0);
-            let v = verdict(&step, &monitor);
-            rec.on_sample(last_us, &monitor, v, true).with_context(|| format!("cannot write {}", path.display()))?;
+        let write_err = || format!("cannot write {}", path.display());
+        for (i, &code) in adc.iter().enumerate() {
+            let index = u32::try_from(i).context("trace longer than 2^32 samples")?;
+            last_us = pbm::pipeline::candump::sample_time_us(base_us, index);
+            for f in pipeline.step(pbm::AdcCounts(code), true).frames.as_slice() {
+                sink.send(last_us, f).with_context(write_err)?;
+            }
+        }
+        if let Some((_, frames)) = pipeline.close() {
+            for f in frames.as_slice() {
+                sink.send(last_us, f).with_context(write_err)?;
+            }
         }
         base_us = last_us + TRACE_GAP_US;
     }
-    let w = rec.into_sink();
-    let frames = w.frames();
-    w.finish().with_context(|| format!("cannot write {}", path.display()))?;
+    let frames = sink.frames();
+    sink.finish().with_context(|| format!("cannot write {}", path.display()))?;
     Ok(frames)
 }
 

@@ -159,6 +159,44 @@ fn train_all_ours(train: &[TraceFeatures], seed: u64) -> Result<(Mlp, QuantParam
     Ok((net, q, classes))
 }
 
+/// Scores of the float models (in `nets` order), `ours_int8` and `core_compiled` (the model
+/// compiled into the core) at the end of each test trace, and how many traces ours gets the
+/// same class from in f64 and int8. `nets` must hold [`Kind::Ours`].
+pub fn score_all(
+    nets: &[(Kind, Mlp)],
+    quant: &QuantParams,
+    classes: &[FaultClass],
+    test: &[TraceFeatures],
+) -> Result<(Vec<Score>, usize)> {
+    let truth: Vec<usize> = test
+        .iter()
+        .map(|d| {
+            class_index(classes, d.class)
+                .with_context(|| format!("{}: class {} not in the models", d.row.file, d.class))
+        })
+        .collect::<Result<_>>()?;
+    let n = classes.len();
+    let mut scores = Vec::new();
+    for (k, net) in nets {
+        let out: Vec<Outcome> = test.iter().map(|d| Some(net.predict(&k.final_row(d)))).collect();
+        scores.push(Score::new(k.name(), n, &truth, &out));
+    }
+    let ours = &nets.iter().find(|(k, _)| *k == Kind::Ours).context("no `ours` model")?.1;
+    let ours_f: Vec<Outcome> = test.iter().map(|d| Some(ours.predict(&Kind::Ours.final_row(d)))).collect();
+    let ours_q: Vec<Outcome> = test.iter().map(|d| int8_outcome(quant, &Kind::Ours.final_row(d))).collect();
+    scores.push(Score::new("ours_int8", n, &truth, &ours_q));
+    let core: Vec<Outcome> = test
+        .iter()
+        .map(|d| match d.core_verdict {
+            Verdict::Class { class, .. } => class_index(classes, class),
+            Verdict::CannotDiagnose(_) => None,
+        })
+        .collect();
+    scores.push(Score::new("core_compiled", n, &truth, &core));
+    let agree = ours_f.iter().zip(&ours_q).filter(|(f, q)| f == q).count();
+    Ok((scores, agree))
+}
+
 /// `host-sim evaluate`.
 pub fn run(a: &EvaluateArgs) -> Result<()> {
     let test = dataset_features(&a.dataset, Some("test"))?;
@@ -177,31 +215,9 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
     if quant.classes != classes {
         bail!("ours_int8.txt has other classes than the float models");
     }
-    let truth: Vec<usize> = test
-        .iter()
-        .map(|d| {
-            class_index(&classes, d.class)
-                .with_context(|| format!("{}: class {} not in the models", d.row.file, d.class))
-        })
-        .collect::<Result<_>>()?;
+    let (scores, agree) = score_all(&nets, &quant, &classes, &test)?;
     let n = classes.len();
-    let mut scores = Vec::new();
-    for (k, net) in &nets {
-        let out: Vec<Outcome> = test.iter().map(|d| Some(net.predict(&k.final_row(d)))).collect();
-        scores.push(Score::new(k.name(), n, &truth, &out));
-    }
-    let ours_f: Vec<Outcome> = test.iter().map(|d| Some(nets[3].1.predict(&Kind::Ours.final_row(d)))).collect();
-    let ours_q: Vec<Outcome> = test.iter().map(|d| int8_outcome(&quant, &Kind::Ours.final_row(d))).collect();
-    scores.push(Score::new("ours_int8", n, &truth, &ours_q));
-    let core: Vec<Outcome> = test
-        .iter()
-        .map(|d| match d.core_verdict {
-            Verdict::Class { class, .. } => class_index(&classes, class),
-            Verdict::CannotDiagnose(_) => None,
-        })
-        .collect();
-    scores.push(Score::new("core_compiled", n, &truth, &core));
-    let agree = ours_f.iter().zip(&ours_q).filter(|(f, q)| f == q).count();
+    let truth: Vec<usize> = test.iter().filter_map(|d| class_index(&classes, d.class)).collect();
     let curve = accuracy_vs_time(&nets[3].1, &quant, &classes, &test);
     let stable10 = stable_by(&quant, &classes, &test, 10.0);
     let lolo = if a.lolo {

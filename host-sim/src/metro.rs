@@ -367,7 +367,8 @@ pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
     let dbic = |r0: f64, r1: f64, dk: usize| n_eff * (r0 / r1.max(1e-300)).ln() - dk as f64 * n_eff.ln();
     let mk = |effects: &[MetroEffect], lm: &crate::audit::LmResult| {
         let mut ext = MetroExt::default();
-        let eff: Vec<(MetroEffect, f64)> = effects.iter().enumerate().map(|(i, &e)| (e, e.value(lm.x[2 + i]))).collect();
+        let eff: Vec<(MetroEffect, f64)> =
+            effects.iter().enumerate().map(|(i, &e)| (e, e.value(lm.x[2 + i]))).collect();
         for &(e, v) in &eff {
             ext.set(e, v);
         }
@@ -460,7 +461,11 @@ impl MetroOutcome {
                 c.delta_bic,
                 self.base.rss / c.rss,
                 c.nmse_pct,
-                c.effects.iter().map(|(e, v)| format!("{} = {v:.3} {}", e.name(), e.unit())).collect::<Vec<_>>().join(", ")
+                c.effects
+                    .iter()
+                    .map(|(e, v)| format!("{} = {v:.3} {}", e.name(), e.unit()))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             );
         }
         let _ = writeln!(
@@ -485,7 +490,9 @@ impl MetroOutcome {
         let ranking: Vec<String> = self
             .ranking
             .iter()
-            .map(|c| format!(r#"{{"name": "{}", "delta_bic": {:.3}, "nmse_pct": {:.6}}}"#, c.name, c.delta_bic, c.nmse_pct))
+            .map(|c| {
+                format!(r#"{{"name": "{}", "delta_bic": {:.3}, "nmse_pct": {:.6}}}"#, c.name, c.delta_bic, c.nmse_pct)
+            })
             .collect();
         format!(
             "{{\n  \"cause\": \"{}\",\n  \"magnitude\": {},\n  \"nmse_base_pct\": {:.6},\n  \"nmse_extended_pct\": {:.6},\n  \"ranking\": [\n    {}\n  ]\n}}\n",
@@ -514,9 +521,11 @@ fn plot(path: &Path, rows: &[MetroRow], out: &MetroOutcome) -> Result<()> {
     chart.configure_mesh().x_desc("t, min").y_desc("TP3, bar").draw().map_err(|x| e(&x))?;
     let series = |y: &[f64]| rows.iter().zip(y).map(|(r, &v)| (r.t_s / 60.0, v)).collect::<Vec<_>>();
     let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
-    for (name, y, color) in
-        [("measured", &measured, BLACK), ("adiabatic base", &out.base.curve, RED), ("extended", &out.chosen.curve, BLUE)]
-    {
+    for (name, y, color) in [
+        ("measured", &measured, BLACK),
+        ("adiabatic base", &out.base.curve, RED),
+        ("extended", &out.chosen.curve, BLUE),
+    ] {
         chart
             .draw_series(LineSeries::new(series(y), color))
             .map_err(|x| e(&x))?
@@ -534,8 +543,21 @@ pub fn run(a: &MetroArgs) -> Result<()> {
     let out = audit_metro(&rows)?;
     print!("{}", out.summary());
     if std::env::var_os("METRO_DEBUG").is_some() {
+        let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
+        for d in [0.0, 2.0, 5.0, 10.0, 15.0] {
+            for fill_u in [0.3, 0.35, 0.4] {
+                let mut ext = MetroExt::default();
+                ext.delay_s = d;
+                let m = simulate(&rows, &[fill_u, 0.5], &ext);
+                let rss: f64 = m.iter().zip(&measured).map(|(a, b)| (a - b) * (a - b)).sum();
+                eprintln!("delay {d} fill_u {fill_u}: rss {rss:.4}");
+            }
+        }
         for (i, r) in rows.iter().enumerate().skip(130).take(60) {
-            eprintln!("{i} {:.0} {} {:.3} {:.3} {:.3}", r.t_s, r.loaded, r.tp3_bar, out.base.curve[i], out.chosen.curve[i]);
+            eprintln!(
+                "{i} {:.0} {} {:.3} {:.3} {:.3}",
+                r.t_s, r.loaded, r.tp3_bar, out.base.curve[i], out.chosen.curve[i]
+            );
         }
     }
     if let Some(p) = &a.json {

@@ -359,9 +359,8 @@ pub fn run(a: &ReplayArgs) -> Result<()> {
         bail!("no traces to replay in {}", a.path.display());
     }
     if let Some(path) = &a.can_log {
-        // One CAN stream for all traces, in order. No verdict yet: the classifier is not part of
-        // MonitorStep, so only status frames are sent until it is (then pass it here).
-        let frames = crate::can_log::write_replay_can_log(path, &items, |_step, _monitor| None)?;
+        // One CAN stream for all traces, in order, through the firmware's per-sample pipeline.
+        let frames = crate::can_log::write_replay_can_log(path, &items)?;
         eprintln!("wrote {frames} CAN frames to {}", path.display());
     }
     let progress = items.len() > 1;

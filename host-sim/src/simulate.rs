@@ -101,9 +101,21 @@ pub fn write_release_svg(path: &std::path::Path, params: &TwinParams, duration_s
     let fixed = simulate(Engine::Fixed, params, duration_s).map_err(invalid)?;
     let reference = simulate(Engine::F64, params, duration_s).map_err(invalid)?;
     let series = [
-        Series { label: "pressure, f64 reference (bar g)", points: reference.iter().map(|s| (s.t_s, s.p_bar)).collect(), color: PALETTE[7] },
-        Series { label: "pressure, fixed-point twin (bar g)", points: fixed.iter().map(|s| (s.t_s, s.p_bar)).collect(), color: PALETTE[0] },
-        Series { label: "piston travel, fixed-point twin (cm)", points: fixed.iter().map(|s| (s.t_s, s.x_mm / 10.0)).collect(), color: PALETTE[1] },
+        Series {
+            label: "pressure, f64 reference (bar g)",
+            points: reference.iter().map(|s| (s.t_s, s.p_bar)).collect(),
+            color: PALETTE[7],
+        },
+        Series {
+            label: "pressure, fixed-point twin (bar g)",
+            points: fixed.iter().map(|s| (s.t_s, s.p_bar)).collect(),
+            color: PALETTE[0],
+        },
+        Series {
+            label: "piston travel, fixed-point twin (cm)",
+            points: fixed.iter().map(|s| (s.t_s, s.x_mm / 10.0)).collect(),
+            color: PALETTE[1],
+        },
     ];
     let title = format!(
         "Spring brake release: orifice {:.2} mm, leak {:.2} mm, supply {:.2} bar g",

@@ -67,6 +67,12 @@ impl CanReporter {
         Self { status_countdown: 0, status_counter: 0, fault_counter: 0, last_fault_key: None, samples_since_fault: 0 }
     }
 
+    /// A new release command: the next fault report belongs to a new diagnosis and is sent at
+    /// once, even when its content equals the previous release's report.
+    pub fn new_release(&mut self) {
+        self.last_fault_key = None;
+    }
+
     /// Call once per monitor sample with the current status, the current fault report (if the
     /// monitor has one) and whether a release is in progress (valve command on).
     pub fn step(&mut self, status: &StatusReport, fault: Option<&FaultReport>, release_active: bool) -> Outbox {

@@ -1,0 +1,187 @@
+//! The whole per-sample path of the brake controller in one place: ADC reading and valve
+//! command in, CAN frames out. The firmware's monitor task and `host-sim replay --can-log` both
+//! drive this type, so the two cannot drift apart: same monitor, same diagnosis policy, same
+//! transmit schedule, same counters, same bytes (and [`candump`] writes the same log lines).
+//!
+//! Per sample ([`Pipeline::step`]): [`Monitor::update`] (twin, residual, online estimator,
+//! classifier features), the diagnosis policy below, then the core's CAN transmit schedule
+//! ([`CanReporter::step`]: status at 1 Hz, the fault report when it appears or changes and
+//! repeated at 1 Hz while the valve command is on).
+//!
+//! # Diagnosis policy (issue 7 item 2)
+//!
+//! - A rising edge of the valve command (release requested) opens a diagnosis; the report of
+//!   the previous release is withdrawn from the schedule (the display holds what it showed).
+//! - The diagnosis is closed, and the classifier run once on the features of the release, by
+//!   whichever comes first:
+//!   - the valve command falling (release over);
+//!   - a timeout of [`DIAGNOSIS_WINDOW_SAMPLES`] samples (60 s, the length of a recorded
+//!     release in SPEC §5) since the command: the sample that completes the window closes it;
+//!   - the end of the input ([`Pipeline::close`]: the ADC source ended, e.g. a recorded trace
+//!     shorter than the window), which runs one more transmit tick so the report goes out.
+//! - The closed report (verdict, time since the command, estimated supply and leak) is then
+//!   scheduled as it stands until the next release command.
+//!
+//! The classifier runs once per release (≈ 30 000 instructions on the Cortex-M4F, about 1 ms at
+//! 25 MHz, well inside one 10 ms sample period), so the per-sample cost stays small.
+
+pub mod candump;
+
+use crate::can::{CanReporter, Outbox};
+use crate::monitor::{Monitor, MonitorStep};
+use crate::params::{ParamError, TwinParams};
+use crate::report::FaultReport;
+use crate::units::AdcCounts;
+
+/// Samples from the release command to the timeout that closes a diagnosis (60 s at 100 Hz).
+pub const DIAGNOSIS_WINDOW_SAMPLES: u32 = 6000;
+
+/// What one pipeline step produced.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PipelineStep {
+    /// The monitor's output for this sample.
+    pub monitor: MonitorStep,
+    /// Frames to transmit for this sample, in order.
+    pub frames: Outbox,
+    /// The report of a diagnosis closed at this sample, if one was.
+    pub closed: Option<FaultReport>,
+}
+
+/// Monitor, diagnosis policy and CAN schedule.
+#[derive(Debug, Clone)]
+pub struct Pipeline {
+    monitor: Monitor,
+    reporter: CanReporter,
+    valve_was_open: bool,
+    /// A diagnosis is open (release command seen, not yet closed).
+    diagnosing: bool,
+    /// The report of the last closed diagnosis, scheduled for transmission.
+    report: Option<FaultReport>,
+}
+
+impl Pipeline {
+    /// A pipeline whose twin is the given brake (normally [`TwinParams::nominal`]).
+    pub fn new(params: &TwinParams) -> Result<Self, ParamError> {
+        Ok(Self {
+            monitor: Monitor::new(params)?,
+            reporter: CanReporter::new(),
+            valve_was_open: false,
+            diagnosing: false,
+            report: None,
+        })
+    }
+
+    /// The pipeline for the nominal brake (SPEC §3).
+    pub fn nominal() -> Result<Self, ParamError> {
+        Self::new(&TwinParams::nominal())
+    }
+
+    /// One 100 Hz sample: monitor, diagnosis policy, transmit schedule.
+    pub fn step(&mut self, adc: AdcCounts, valve_open: bool) -> PipelineStep {
+        let monitor = self.monitor.update(adc, valve_open);
+        let mut closed = None;
+        if valve_open && !self.valve_was_open {
+            self.diagnosing = true;
+            self.report = None;
+            self.reporter.new_release();
+        }
+        let window_done = valve_open && monitor.samples_since_release.saturating_add(1) >= DIAGNOSIS_WINDOW_SAMPLES;
+        if self.diagnosing && (!valve_open || window_done) {
+            closed = Some(self.close_diagnosis());
+        }
+        self.valve_was_open = valve_open;
+        let frames = self.reporter.step(&self.monitor.status(), self.report.as_ref(), valve_open);
+        PipelineStep { monitor, frames, closed }
+    }
+
+    /// The input ended (no more samples): closes an open diagnosis and returns its report with
+    /// the frames of one last transmit tick (the fault report, and the status if one is due).
+    /// `None` (nothing to send) when no diagnosis was open.
+    pub fn close(&mut self) -> Option<(FaultReport, Outbox)> {
+        if !self.diagnosing {
+            return None;
+        }
+        let report = self.close_diagnosis();
+        self.valve_was_open = false;
+        Some((report, self.reporter.step(&self.monitor.status(), Some(&report), false)))
+    }
+
+    fn close_diagnosis(&mut self) -> FaultReport {
+        let report = self.monitor.diagnosis();
+        self.diagnosing = false;
+        self.report = Some(report);
+        report
+    }
+
+    /// The monitor (status, estimator, features).
+    pub fn monitor(&self) -> &Monitor {
+        &self.monitor
+    }
+
+    /// The report of the last closed diagnosis (`None` while one is open or before the first).
+    pub fn report(&self) -> Option<&FaultReport> {
+        self.report.as_ref()
+    }
+
+    /// A diagnosis is open.
+    pub fn diagnosing(&self) -> bool {
+        self.diagnosing
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::can::{decode_frame, Report};
+    use crate::report::{NoDiagnosis, Verdict};
+    use crate::sensor::adc_from_bar;
+    use crate::units::{BarG, PressureQ24};
+    use crate::{FaultClass, Twin};
+
+    fn fault_reports(frames: &[crate::can::CanFrame]) -> usize {
+        frames.iter().filter(|f| matches!(decode_frame(*f), Ok((Report::Fault(_), _)))).count()
+    }
+
+    #[test]
+    fn timeout_closes_the_diagnosis_of_a_full_release() {
+        let mut plant = Twin::new(&TwinParams::nominal().with_orifice_mm(0.6)).unwrap();
+        let mut pipe = Pipeline::nominal().unwrap();
+        let mut p = PressureQ24::ATMOSPHERE;
+        let mut reports = 0;
+        for i in 0..DIAGNOSIS_WINDOW_SAMPLES + 150 {
+            let s = pipe.step(adc_from_bar(p.to_bar_g()), true);
+            p = plant.update(true).pressure;
+            reports += fault_reports(s.frames.as_slice());
+            assert_eq!(s.closed.is_some(), i == DIAGNOSIS_WINDOW_SAMPLES - 1, "sample {i}");
+            if let Some(r) = s.closed {
+                assert!(matches!(r.verdict, Verdict::Class { class: FaultClass::OrificeBlock, .. }), "{r:?}");
+                assert_eq!(r.time_since_release_cs, 6000);
+                assert_eq!(fault_reports(s.frames.as_slice()), 1, "sent at once");
+            }
+        }
+        assert!(!pipe.diagnosing());
+        assert_eq!(reports, 2, "sent at the timeout, repeated after 1 s while the valve is open");
+        assert!(pipe.close().is_none(), "nothing open at the end of the input");
+    }
+
+    #[test]
+    fn end_of_input_and_valve_closing_close_the_diagnosis() {
+        let mut pipe = Pipeline::nominal().unwrap();
+        for _ in 0..50 {
+            assert!(pipe.step(adc_from_bar(BarG(0.5)), true).closed.is_none());
+        }
+        let (report, frames) = pipe.close().unwrap();
+        assert_eq!(report.verdict, Verdict::CannotDiagnose(NoDiagnosis::TooShort));
+        assert_eq!(fault_reports(frames.as_slice()), 1);
+        // A new release, then the valve closes: closed at that sample.
+        assert!(pipe.step(adc_from_bar(BarG(0.0)), true).closed.is_none());
+        assert!(pipe.report().is_none(), "the old report is withdrawn at the new command");
+        let s = pipe.step(adc_from_bar(BarG(0.0)), false);
+        assert!(s.closed.is_some());
+        assert_eq!(fault_reports(s.frames.as_slice()), 1);
+        // Valve stays closed: no repeats.
+        let n: usize =
+            (0..300).map(|_| fault_reports(pipe.step(adc_from_bar(BarG(0.0)), false).frames.as_slice())).sum();
+        assert_eq!(n, 0);
+    }
+}
