@@ -28,6 +28,27 @@ pub enum Verdict {
     CannotDiagnose(NoDiagnosis),
 }
 
+impl core::fmt::Display for NoDiagnosis {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            Self::SensorFault(s) => write!(f, "sensor fault ({s})"),
+            Self::TooShort => f.write_str("release too short"),
+            Self::Implausible => f.write_str("implausible inputs"),
+        }
+    }
+}
+
+/// `air_leak 97%` or `cannot diagnose: release too short`: what a display shows.
+impl core::fmt::Display for Verdict {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match self {
+            // 255 ↔ 100 %, rounded to the nearest per cent.
+            Self::Class { class, confidence } => write!(f, "{class} {}%", (u32::from(*confidence) * 100 + 127) / 255),
+            Self::CannotDiagnose(why) => write!(f, "cannot diagnose: {why}"),
+        }
+    }
+}
+
 /// Fault report for one release, sent when a diagnosis is made or updated.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct FaultReport {

@@ -349,3 +349,142 @@ fn every_double_bit_error_is_detected() {
         }
     }
 }
+
+// ---- heartbeat rule -------------------------------------------------------------------------
+
+/// A silent heartbeat (no status frame for longer than HEARTBEAT_TIMEOUT_US) restarts counter
+/// tracking, so a restarted sender is accepted; shorter gaps keep the sequence checks.
+#[test]
+fn heartbeat_loss_restarts_counter_tracking() {
+    use pbm::can::HEARTBEAT_TIMEOUT_US;
+    assert_eq!(HEARTBEAT_TIMEOUT_US, 3_000_000);
+    let status = |c: u8| encode_status(&example_status(), c);
+    let fault = |c: u8| encode_fault(&example_fault(), c);
+    let mut d = Decoder::new();
+    let mut t = 0u64;
+    for c in 0..5u8 {
+        let r = d.receive(t, &status(c));
+        assert!(r.result.is_ok() && r.heartbeat_lost_us.is_none());
+        t += 1_000_000;
+    }
+    assert!(d.receive(t, &fault(0)).result.is_ok());
+    // The sender restarts after a gap shorter than the timeout: its counter 0 is a replay.
+    let r = d.receive(4_000_000 + HEARTBEAT_TIMEOUT_US, &status(0));
+    assert_eq!((r.result.map_err(|e| e.label()), r.heartbeat_lost_us), (Err("out_of_order"), None));
+    // The same after a silence longer than the timeout: lost, resynchronised, accepted.
+    let mut d2 = Decoder::new();
+    assert!(d2.receive(0, &status(7)).result.is_ok());
+    assert!(d2.receive(100, &fault(3)).result.is_ok());
+    let r = d2.receive(HEARTBEAT_TIMEOUT_US + 1, &fault(0));
+    assert_eq!(r.heartbeat_lost_us, Some(HEARTBEAT_TIMEOUT_US + 1));
+    assert!(r.result.is_ok(), "restarted fault sequence accepted");
+    let r = d2.receive(HEARTBEAT_TIMEOUT_US + 2, &status(0));
+    assert_eq!((r.result.is_ok(), r.heartbeat_lost_us), (true, None), "restarted status sequence accepted");
+    // Sequence checks work again at once after the resync.
+    assert_eq!(d2.receive(HEARTBEAT_TIMEOUT_US + 3, &status(0)).result.unwrap_err().label(), "repeated_counter");
+    // Only status frames with a valid CRC are heartbeats: fault reports and corrupted status
+    // frames do not keep the monitor alive.
+    let mut d3 = Decoder::new();
+    assert!(d3.receive(0, &status(1)).result.is_ok());
+    assert!(d3.receive(2_000_000, &fault(1)).result.is_ok());
+    let bad = flip_data_bit(&status(2), 20);
+    assert_eq!(d3.receive(2_500_000, &bad).result.unwrap_err().label(), "wrong_crc");
+    assert!(d3.receive(3_000_001, &fault(2)).heartbeat_lost_us.is_some());
+    // A status frame flagged only for its counter still proves the sender alive.
+    let mut d4 = Decoder::new();
+    assert!(d4.receive(0, &status(1)).result.is_ok());
+    assert_eq!(d4.receive(2_000_000, &status(1)).result.unwrap_err().label(), "repeated_counter");
+    assert!(d4.receive(4_000_000, &status(2)).heartbeat_lost_us.is_none());
+    // A clock going backwards is no silence.
+    assert!(d4.receive(0, &status(3)).heartbeat_lost_us.is_none());
+}
+
+// ---- what the pipeline transmits ------------------------------------------------------------
+
+/// Checks one frame the pipeline wants to send: one of the two DBC messages, extended id,
+/// 8-byte data frame, and it decodes cleanly in sequence.
+fn assert_report_frame(f: &CanFrame, dec: &mut Decoder, t_us: u64, seen: &mut [u32; 2]) {
+    let idx = layout::MESSAGES
+        .iter()
+        .position(|m| m.raw_id() == f.raw_id())
+        .unwrap_or_else(|| panic!("pipeline emitted id {:08X}, not one of the DBC's messages", f.raw_id()));
+    assert!(f.is_extended() && f.is_data_frame() && f.dlc() == 8, "{f:?}");
+    seen[idx] += 1;
+    let r = dec.receive(t_us, f);
+    assert!(r.result.is_ok(), "pipeline frame flagged: {:?}", r.result);
+    assert!(r.heartbeat_lost_us.is_none());
+}
+
+/// The monitor never transmits anything but its two report identifiers: full releases of
+/// every class (and sensor faults) through the one per-sample pipeline shared with the
+/// firmware, with every frame checked and decoded in sequence.
+#[test]
+fn pipeline_emits_only_the_two_report_ids() {
+    use pbm::pipeline::Pipeline;
+    use pbm::sensor::adc_from_bar;
+    use pbm::{AdcCounts, Twin, TwinParams};
+    let nominal = TwinParams::nominal();
+    let releases = [
+        nominal,
+        nominal.with_leak_mm(0.9),
+        nominal.with_orifice_mm(0.5),
+        nominal.with_supply_bar_g(5.0),
+        nominal.with_orifice_mm(3.0),
+    ];
+    let mut pipe = Pipeline::nominal().unwrap();
+    let mut dec = Decoder::new();
+    let mut seen = [0u32; 2];
+    let mut n = 0u64;
+    for (k, params) in releases.iter().enumerate() {
+        let mut plant = Twin::new(params).unwrap();
+        let mut p = pbm::PressureQ24::ATMOSPHERE;
+        // Valve open for 30 s (a sensor fault in the middle of release 1), then 5 s closed.
+        for i in 0..3500u32 {
+            let open = i < 3000;
+            let mut adc = adc_from_bar(p.to_bar_g());
+            if k == 1 && (1000..1100).contains(&i) {
+                adc = AdcCounts(if i < 1050 { 0 } else { 4095 });
+            }
+            let step = pipe.step(adc, open);
+            p = plant.update(open).pressure;
+            for f in step.frames.as_slice() {
+                assert_report_frame(f, &mut dec, n * 10_000, &mut seen);
+            }
+            n += 1;
+        }
+    }
+    assert_eq!(pipe.close(), None);
+    assert!(seen[0] >= releases.len() as u32, "fault reports sent: {seen:?}");
+    assert_eq!(u64::from(seen[1]), n.div_ceil(100), "status at 1 Hz");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// Whatever the inputs (any ADC code, even above 12 bits; any valve pattern), the pipeline
+    /// emits only the two report frames, each decoding cleanly in sequence.
+    #[test]
+    fn pipeline_emits_only_report_frames_for_any_input(
+        segments in prop::collection::vec((any::<bool>(), 1u32..700, any::<u16>(), -40i32..40), 1..8),
+    ) {
+        let mut pipe = pbm::pipeline::Pipeline::nominal().unwrap();
+        let mut dec = Decoder::new();
+        let mut seen = [0u32; 2];
+        let mut n = 0u64;
+        for (open, len, start, slope) in segments {
+            for i in 0..len {
+                let adc = (i64::from(start) + i64::from(slope) * i64::from(i)).clamp(0, i64::from(u16::MAX)) as u16;
+                for f in pipe.step(pbm::AdcCounts(adc), open).frames.as_slice() {
+                    assert_report_frame(f, &mut dec, n * 10_000, &mut seen);
+                }
+                n += 1;
+            }
+        }
+        if let Some((_, frames)) = pipe.close() {
+            for f in frames.as_slice() {
+                assert_report_frame(f, &mut dec, n * 10_000, &mut seen);
+            }
+        }
+        prop_assert!(seen[1] >= 1, "a status frame from the first sample");
+    }
+}

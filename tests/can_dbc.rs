@@ -125,3 +125,35 @@ fn cycle_times_and_data_ids_are_documented_in_the_dbc() {
         assert!(comment.contains(&format!("data ID 0x{:04X}", m.data_id)), "{}: comment names the data ID", m.name);
     }
 }
+
+/// The codec converts report units (10 ms, mbar, µm) to raw values with integer constants;
+/// those must mean the same as the DBC's factors and units, or cantools would show other
+/// values than the display.
+#[test]
+fn codec_resolutions_agree_with_the_dbc_factors() {
+    let dbc = dbc();
+    let factor = |msg: &Message, sig: &str| -> (f64, String) {
+        let m = dbc.messages.iter().find(|m| m.id == MessageId::Extended(msg.raw_id())).expect("message in DBC");
+        let s = m.signals.iter().find(|s| s.name == sig).expect("signal in DBC");
+        (s.factor, s.unit.clone())
+    };
+    let cases = [
+        (&layout::FAULT_REPORT, layout::TIME_SINCE_RELEASE.name, f64::from(layout::TIME_CS_PER_LSB) * 0.01, "s"),
+        (&layout::FAULT_REPORT, layout::SUPPLY_PRESSURE.name, f64::from(layout::SUPPLY_MBAR_PER_LSB) * 0.001, "bar"),
+        (&layout::FAULT_REPORT, layout::LEAK_DIAMETER.name, f64::from(layout::LEAK_UM_PER_LSB) * 0.001, "mm"),
+        (&layout::FAULT_REPORT, layout::CONFIDENCE.name, 100.0 / 255.0, "%"),
+        // StatusReport::pressure_mbar is sent as is.
+        (&layout::STATUS, layout::CHAMBER_PRESSURE.name, 0.001, "bar"),
+    ];
+    for (msg, sig, per_lsb, unit) in cases {
+        let (f, u) = factor(msg, sig);
+        assert!(close(f, per_lsb), "{sig}: DBC factor {f} vs codec {per_lsb}");
+        assert_eq!(u, unit, "{sig}");
+    }
+    // Names are unique in code, so the one-way lookup above is a bijection.
+    for m in layout::MESSAGES {
+        for (i, a) in m.signals.iter().enumerate() {
+            assert!(m.signals[i + 1..].iter().all(|b| b.name != a.name), "{} twice", a.name);
+        }
+    }
+}

@@ -3,19 +3,27 @@
 //! the host's standard output over semihosting. It implements [`embedded_can::blocking::Can`]
 //! like a real bxCAN/FDCAN driver, so the CAN task does not know which one it drives.
 //!
-//! Timestamps are the monitor's sample clock (sample n of a release at n × 10 ms), not the
+//! The line is the core's [`pbm::pipeline::candump::Line`], the formatter `host-sim replay
+//! --can-log` uses too, encoded by hand into a stack buffer (no `core::fmt`). Time stamps are
+//! the monitor's sample clock ([`sample_time_us`]: sample n of the input at n × 10 ms), not the
 //! wall clock, so a QEMU run and a host replay of the same trace give identical logs.
 
-use core::fmt::{self, Write as _};
-
-use embedded_can::{ErrorKind, Frame as _, Id};
+use embedded_can::ErrorKind;
 use pbm::can::CanFrame;
+use pbm::pipeline::candump::{sample_time_us, Line, MAX_LINE_LEN_WITHOUT_IFACE};
+
+/// Interface name written in every line.
+pub const IFACE: &str = "can0";
+/// Line buffer: the longest line with [`IFACE`] plus the newline.
+const LINE_BUF: usize = MAX_LINE_LEN_WITHOUT_IFACE + IFACE.len() + 1;
 
 /// Errors of [`CandumpCan`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum CandumpError {
     /// This driver only transmits; the monitor never listens on the bus.
     ReceiveUnsupported,
+    /// The line did not fit its buffer (cannot happen for a valid frame; counted, not sent).
+    LineTooLong,
 }
 
 impl embedded_can::Error for CandumpError {
@@ -37,9 +45,9 @@ impl CandumpCan {
         Self { timestamp_us: 0, sent: 0 }
     }
 
-    /// Sets the timestamp of the frames that follow, in 10 ms samples since the release command.
-    pub fn set_sample_time(&mut self, sample: u32) {
-        self.timestamp_us = u64::from(sample) * 10_000;
+    /// Sets the time stamp of the frames that follow: sample `index` of the input.
+    pub fn set_sample_time(&mut self, index: u32) {
+        self.timestamp_us = sample_time_us(0, index);
     }
 
     /// Frames written so far.
@@ -48,43 +56,17 @@ impl CandumpCan {
     }
 }
 
-/// One candump log line (without the newline) for `frame` at `timestamp_us`.
-pub struct CandumpLine<'a> {
-    /// Time of the frame, µs.
-    pub timestamp_us: u64,
-    /// Interface name.
-    pub interface: &'a str,
-    /// The frame.
-    pub frame: &'a CanFrame,
-}
-
-impl fmt::Display for CandumpLine<'_> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let t = self.timestamp_us;
-        write!(f, "({:010}.{:06}) {} ", t / 1_000_000, t % 1_000_000, self.interface)?;
-        match self.frame.id() {
-            Id::Standard(id) => write!(f, "{:03X}#", id.as_raw())?,
-            Id::Extended(id) => write!(f, "{:08X}#", id.as_raw())?,
-        }
-        if self.frame.is_remote_frame() {
-            return write!(f, "R");
-        }
-        for b in self.frame.data() {
-            write!(f, "{b:02X}")?;
-        }
-        Ok(())
-    }
-}
-
 impl embedded_can::blocking::Can for CandumpCan {
     type Frame = CanFrame;
     type Error = CandumpError;
 
     fn transmit(&mut self, frame: &CanFrame) -> Result<(), CandumpError> {
-        let mut line: heapless::String<64> = heapless::String::new();
-        // 64 bytes hold the longest line (extended id, 8 data bytes: 48 characters + newline).
-        let _ = writeln!(line, "{}", CandumpLine { timestamp_us: self.timestamp_us, interface: "can0", frame });
-        cortex_m_semihosting::hprint!("{}", line.as_str());
+        let mut buf = [0u8; LINE_BUF];
+        let line = Line { time_us: self.timestamp_us, iface: IFACE, frame };
+        let len = line.encode(&mut buf).ok_or(CandumpError::LineTooLong)?;
+        let newline = buf.get_mut(len).ok_or(CandumpError::LineTooLong)?;
+        *newline = b'\n';
+        crate::console::write_stdout(buf.get(..=len).ok_or(CandumpError::LineTooLong)?);
         self.sent = self.sent.wrapping_add(1);
         Ok(())
     }

@@ -8,9 +8,10 @@
 use core::fmt::Write as _;
 
 use cortex_m_semihosting::debug;
+use cortex_m_semihosting::hio::{self, HostStream};
 
 /// Longest line [`print_line`] writes in one semihosting call; longer text is cut.
-pub const LINE_CAPACITY: usize = 160;
+pub const LINE_CAPACITY: usize = 192;
 
 /// Writes `args` and a newline to the host's standard output in one semihosting call (so lines
 /// of concurrent writers never interleave). Text beyond [`LINE_CAPACITY`] bytes is dropped.
@@ -22,7 +23,7 @@ pub fn print_line(args: core::fmt::Arguments<'_>) {
         line.pop();
         let _ = line.push('\n');
     }
-    cortex_m_semihosting::hprint!("{}", line.as_str());
+    write_stdout(line.as_bytes());
 }
 
 /// As [`print_line`], to the host's standard error (logs of the `monitor` binary, whose standard
@@ -34,7 +35,7 @@ pub fn eprint_line(args: core::fmt::Arguments<'_>) {
         line.pop();
         let _ = line.push('\n');
     }
-    cortex_m_semihosting::heprint!("{}", line.as_str());
+    write_stderr(line.as_bytes());
 }
 
 /// `eprintln!`-like wrapper around [`eprint_line`].
@@ -78,9 +79,139 @@ impl core::fmt::Display for GaugeBar {
 
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
-    // Last resort: the per-sample path is written not to panic (see the core's tests); if it
-    // ever does, say where and fail the run instead of hanging until the QEMU timeout.
+    // Last resort: the per-sample path is written not to panic (see `tests/pipeline_no_panic.rs`
+    // in the core); if it ever does, say where and fail the run instead of hanging until the
+    // QEMU timeout. Only the location is printed, formatted by hand: formatting the message
+    // would link `core::fmt` into every binary.
     cortex_m::interrupt::disable();
-    print_line(format_args!("PANIC: {info}"));
+    let mut line = Text::new().str("PANIC");
+    if let Some(loc) = info.location() {
+        line = line.str(" at ").str(loc.file()).str(":").u32(loc.line());
+    }
+    line.print();
     exit(false)
+}
+
+/// One line of log text built without `core::fmt` (strings and integers formatted by hand), so
+/// that the `monitor` application links no formatting machinery. Text beyond
+/// [`LINE_CAPACITY`] bytes is dropped.
+#[derive(Clone)]
+pub struct Text {
+    buf: [u8; LINE_CAPACITY],
+    len: usize,
+}
+
+impl Default for Text {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Text {
+    /// An empty line.
+    pub const fn new() -> Self {
+        Self { buf: [0; LINE_CAPACITY], len: 0 }
+    }
+
+    fn byte(&mut self, b: u8) {
+        if let Some(slot) = self.buf.get_mut(self.len) {
+            *slot = b;
+            self.len += 1;
+        }
+    }
+
+    /// Appends `s` (cut at the capacity).
+    #[must_use]
+    pub fn str(mut self, s: &str) -> Self {
+        for &b in s.as_bytes() {
+            self.byte(b);
+        }
+        self
+    }
+
+    /// Appends `v` in decimal.
+    #[must_use]
+    pub fn u32(mut self, v: u32) -> Self {
+        // Largest power of ten not above v (1 for 0), then one digit per power.
+        let mut p = 1u32;
+        while p <= v / 10 {
+            p *= 10;
+        }
+        loop {
+            self.byte(b'0' + (v / p % 10) as u8);
+            if p == 1 {
+                return self;
+            }
+            p /= 10;
+        }
+    }
+
+    /// Appends `v` in decimal with a sign.
+    #[must_use]
+    pub fn i32(self, v: i32) -> Self {
+        let s = if v < 0 { self.str("-") } else { self };
+        s.u32(v.unsigned_abs())
+    }
+
+    /// The text so far.
+    pub fn as_bytes(&self) -> &[u8] {
+        self.buf.get(..self.len).unwrap_or(&[])
+    }
+
+    fn finish(mut self) -> ([u8; LINE_CAPACITY], usize) {
+        if self.len == LINE_CAPACITY {
+            self.len -= 1;
+        }
+        self.buf[self.len] = b'\n';
+        (self.buf, self.len + 1)
+    }
+
+    /// Writes the line and a newline to the host's standard output (one semihosting call).
+    pub fn print(self) {
+        let (buf, len) = self.finish();
+        write_stdout(buf.get(..len).unwrap_or(&[]));
+    }
+
+    /// Writes the line and a newline to the host's standard error (one semihosting call).
+    pub fn eprint(self) {
+        let (buf, len) = self.finish();
+        write_stderr(buf.get(..len).unwrap_or(&[]));
+    }
+}
+
+/// Semihosting handles of the host's standard output and error, opened once (every
+/// `hio::hstdout()` call opens a new host file handle).
+static STREAMS: critical_section::Mutex<core::cell::Cell<[Option<HostStream>; 2]>> =
+    critical_section::Mutex::new(core::cell::Cell::new([None, None]));
+
+fn write_stream(which: usize, bytes: &[u8]) {
+    critical_section::with(|cs| {
+        let cell = STREAMS.borrow(cs);
+        let mut streams = cell.get();
+        let Some(&cached) = streams.get(which) else { return };
+        let stream = match cached {
+            Some(s) => Some(s),
+            None => {
+                let opened = if which == 0 { hio::hstdout().ok() } else { hio::hstderr().ok() };
+                if let Some(slot) = streams.get_mut(which) {
+                    *slot = opened;
+                }
+                cell.set(streams);
+                opened
+            }
+        };
+        if let Some(mut stream) = stream {
+            let _ = stream.write_all(bytes);
+        }
+    });
+}
+
+/// Writes raw bytes to the host's standard output over semihosting (no formatting code).
+pub fn write_stdout(bytes: &[u8]) {
+    write_stream(0, bytes);
+}
+
+/// Writes raw bytes to the host's standard error over semihosting (no formatting code).
+pub fn write_stderr(bytes: &[u8]) {
+    write_stream(1, bytes);
 }

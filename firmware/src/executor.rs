@@ -23,7 +23,7 @@ fn pender(_context: *mut ()) {
 /// with `WFI` in between.
 pub fn run(init: impl FnOnce(Spawner)) -> ! {
     let Some(executor) = cortex_m::singleton!(: raw::Executor = raw::Executor::new(core::ptr::null_mut())) else {
-        crate::console::print_line(format_args!("executor::run called twice"));
+        crate::console::Text::new().str("executor::run called twice").print();
         crate::console::exit(false);
     };
     let executor: &'static raw::Executor = executor;

@@ -1,7 +1,8 @@
 //! Firmware of the spring parking brake monitor for a Cortex-M4F (`thumbv7em-none-eabihf`).
 //!
-//! The monitor logic is the `no_std` core (`pbm`, the repository's root package); this crate
-//! only supplies what a microcontroller needs around it:
+//! The monitor logic is the `no_std` core (`pbm`, the repository's root package): the monitor
+//! task drives `pbm::pipeline::Pipeline`, the same per-sample path `host-sim replay` runs. This
+//! crate only supplies what a microcontroller needs around it:
 //!
 //! - [`time_driver`]: the embassy-time driver on the Cortex-M SysTick timer.
 //! - [`executor`]: an embassy executor whose idle loop sleeps with `WFI` (QEMU treats `WFE` as
@@ -11,9 +12,9 @@
 //! - [`golden`]: the host-computed checkpoints of the nominal release, compiled into flash.
 //!
 //! - [`adc`]: the pressure ADC trait and the QEMU trace player.
-//! - [`candump`]: an `embedded_can::blocking::Can` that writes candump log lines.
+//! - [`candump`]: an `embedded_can::blocking::Can` that writes candump log lines (the core's
+//!   `pbm::pipeline::candump` formatter).
 //! - [`stack`]: peak stack by painting.
-//! - [`pipeline`]: the per-sample work (core monitor + CAN schedule), shared with the benchmark.
 //!
 //! Binaries: `twin-check` (the twin in QEMU against the host's golden values), `monitor` (the
 //! monitor as embassy tasks: ADC, monitor, CAN, watchdog) and `bench` (cost figures).
@@ -25,6 +26,5 @@ pub mod candump;
 pub mod console;
 pub mod executor;
 pub mod golden;
-pub mod pipeline;
 pub mod stack;
 pub mod time_driver;

@@ -51,6 +51,12 @@ pub const MIN_RSS_RATIO: f64 = 1.5;
 pub const BASE_SPREAD: f64 = 0.055;
 /// Half-width of the supply box around the documented setting, bar (SPEC §5: ± 0.03).
 pub const SUPPLY_SPREAD_BAR: f64 = 0.035;
+/// LM iterations of the screening fit of every single mechanism.
+pub const SCREEN_ITER: usize = 6;
+/// Single mechanisms refined to convergence after screening (best screening RSS first).
+pub const REFINED_SINGLES: usize = 4;
+/// Pairs are formed from this many best single mechanisms.
+pub const PAIR_POOL: usize = 4;
 /// Names of the base parameters, in vector order.
 pub const BASE_NAMES: [&str; 6] = ["cf", "v0", "f0", "k", "friction", "supply"];
 
@@ -331,7 +337,7 @@ where
                     r = rn;
                     rss = rss_n;
                     lambda = (lambda / 4.0).max(1e-7);
-                    improved = gain > 1e-7;
+                    improved = gain > 1e-6;
                     break;
                 }
             }
@@ -709,33 +715,57 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         delta_bic: 0.0,
         evaluations: evals,
     };
-    let singles: Vec<(Vec<Effect>, LmResult, usize)> = Effect::ALL
+    // Singles: a short screening fit from every start, then the most promising mechanisms are
+    // refined to convergence from their best screening point (the others keep their screening
+    // fit: they only ever lose, so a few more iterations would not change the verdict).
+    let screened: Vec<(Effect, LmResult, usize)> = Effect::ALL
         .par_iter()
         .filter_map(|&e| {
             let starts: Vec<Vec<f64>> =
                 e.starts().iter().map(|&m| base_lm.x.iter().copied().chain([effect_u(e, m)]).collect()).collect();
-            prob.fit(&[e], &starts, opts.max_iter).map(|(lm, ev)| (vec![e], lm, ev))
+            prob.fit(&[e], &starts, SCREEN_ITER).map(|(lm, ev)| (e, lm, ev))
         })
         .collect();
-    let mut fits: Vec<(Vec<Effect>, LmResult, usize)> = singles;
+    let mut order: Vec<usize> = (0..screened.len()).collect();
+    order.sort_by(|&a, &b| screened[a].1.rss.total_cmp(&screened[b].1.rss));
+    let refine: Vec<usize> = order.iter().copied().take(REFINED_SINGLES).collect();
+    let mut fits: Vec<(Vec<Effect>, LmResult, usize)> = screened
+        .par_iter()
+        .enumerate()
+        .map(|(i, (e, lm, ev))| {
+            if refine.contains(&i) {
+                if let Some((r, ev2)) = prob.fit(&[*e], std::slice::from_ref(&lm.x), opts.max_iter) {
+                    if r.rss <= lm.rss {
+                        return (vec![*e], r, ev + ev2);
+                    }
+                }
+            }
+            (vec![*e], lm.clone(), *ev)
+        })
+        .collect();
     fits.sort_by(|a, b| a.1.rss.total_cmp(&b.1.rss));
     if opts.pairs && fits.len() >= 2 {
         let top: Vec<(Effect, f64, Vec<f64>)> =
-            fits.iter().take(3).map(|(e, lm, _)| (e[0], lm.x[nb], lm.x[..nb].to_vec())).collect();
+            fits.iter().take(PAIR_POOL).map(|(e, lm, _)| (e[0], lm.x[nb], lm.x[..nb].to_vec())).collect();
         let mut pair_jobs = Vec::new();
         for i in 0..top.len() {
             for j in i + 1..top.len() {
-                pair_jobs.push((top[i].clone(), top[j].clone()));
+                // Canonical order (that of `Effect::ALL`), so `a+b` names are stable.
+                let (a, b) = if top[i].0 <= top[j].0 { (&top[i], &top[j]) } else { (&top[j], &top[i]) };
+                pair_jobs.push((a.clone(), b.clone()));
             }
         }
         let pairs: Vec<(Vec<Effect>, LmResult, usize)> = pair_jobs
             .par_iter()
             .filter_map(|(a, b)| {
                 let effects = vec![a.0, b.0];
+                let off_a = effect_u(a.0, a.0.off_value());
+                let off_b = effect_u(b.0, b.0.off_value());
+                // From each single's optimum with the other mechanism barely on, and halfway.
                 let starts = vec![
-                    a.2.iter().copied().chain([a.1, b.1]).collect::<Vec<f64>>(),
-                    b.2.iter().copied().chain([a.1 * 0.7, b.1]).collect(),
-                    a.2.iter().copied().chain([a.1, b.1 * 0.5]).collect(),
+                    a.2.iter().copied().chain([a.1, 0.9 * off_b + 0.1 * b.1]).collect::<Vec<f64>>(),
+                    b.2.iter().copied().chain([0.9 * off_a + 0.1 * a.1, b.1]).collect(),
+                    a.2.iter().copied().chain([0.5 * (a.1 + off_a), 0.5 * (b.1 + off_b)]).collect(),
                 ];
                 prob.fit(&effects, &starts, opts.max_iter).map(|(lm, ev)| (effects, lm, ev))
             })
@@ -783,8 +813,9 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
             chosen = s.clone();
             let best_pair = ranking
                 .iter()
-                .filter(|c| c.effects.len() == 2 && c.effects.iter().any(|e| e.0 == s.effects[0].0))
+                .filter(|c| c.effects.len() == 2)
                 .max_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
+            // Any pair may replace the best single, but only by beating it on both rules.
             if let Some(p) = best_pair {
                 if dbic(s.rss, p.rss, 1) > BIC_THRESHOLD && s.rss / p.rss >= MIN_RSS_RATIO {
                     chosen = p.clone();
@@ -932,7 +963,8 @@ impl AuditOutcome {
             "  residual × phase: {}",
             d.ccf_phase.iter().map(|(n, c)| format!("{n} {c:+.2}")).collect::<Vec<_>>().join(", ")
         );
-        let _ = writeln!(s, "candidates (n = {}, n_eff = {:.0}):", self.n, self.n_eff);
+        let runs = self.base.evaluations + self.ranking.iter().map(|c| c.evaluations).sum::<usize>();
+        let _ = writeln!(s, "candidates (n = {}, n_eff = {:.0}; {runs} twin runs in all):", self.n, self.n_eff);
         for c in &self.ranking {
             let _ = writeln!(
                 s,

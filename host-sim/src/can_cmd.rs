@@ -7,6 +7,9 @@
 //! CRC, a repeated, skipped or out-of-order counter, an unknown identifier, a wrong length,
 //! an invalid signal value, or log lines that are not frames, are flagged (`!!` lines) and
 //! skipped. It never stops on bad input; it exits 0 and ends with a summary of what it flagged.
+//! A silence of the heartbeat (status frame) longer than [`pbm::can::HEARTBEAT_TIMEOUT_US`] is
+//! shown as a `--` line and restarts counter tracking, so the logs of several releases or
+//! locomotives written one after another (`host-sim replay DATASET --can-log`) decode cleanly.
 
 use crate::can_bus::{FrameSink, FrameSource};
 use crate::can_log::{format_frame, read_log, CanRecorder, CandumpWriter, LogError, DEFAULT_IFACE};
@@ -125,6 +128,9 @@ pub struct DecodeSummary {
     pub status_reports: u64,
     /// Flagged and skipped, by reason label ([`FrameError::label`] or `bad_log_line`).
     pub flagged: BTreeMap<&'static str, u64>,
+    /// Times the heartbeat was silent for longer than [`pbm::can::HEARTBEAT_TIMEOUT_US`] (monitor
+    /// lost: restart, bus-off, gap between recordings); counter tracking restarted each time.
+    pub heartbeat_losses: u64,
 }
 
 impl DecodeSummary {
@@ -147,6 +153,9 @@ impl std::fmt::Display for DecodeSummary {
         if !self.flagged.is_empty() {
             let parts: Vec<String> = self.flagged.iter().map(|(k, v)| format!("{k} {v}")).collect();
             write!(f, " ({})", parts.join(", "))?;
+        }
+        if self.heartbeat_losses > 0 {
+            write!(f, "; heartbeat lost {} times", self.heartbeat_losses)?;
         }
         Ok(())
     }
@@ -293,7 +302,19 @@ impl<W: Write> CabDisplay<W> {
     pub fn frame(&mut self, time_us: u64, frame: &CanFrame) -> std::io::Result<Result<Report, FrameError>> {
         self.summary.frames += 1;
         let counter = pbm::can::codec::check_frame(frame).ok().map(|(_, _, c)| c);
-        let result = self.decoder.decode(frame);
+        let reception = self.decoder.receive(time_us, frame);
+        if let Some(silence_us) = reception.heartbeat_lost_us {
+            self.summary.heartbeat_losses += 1;
+            if self.format == DecodeFormat::Text {
+                writeln!(
+                    self.out,
+                    "{} s  -- no heartbeat for {:.1} s: monitor lost (restart or gap); counters resynchronised",
+                    time_text(time_us),
+                    silence_us as f64 / 1e6
+                )?;
+            }
+        }
+        let result = reception.result;
         match (&result, self.format) {
             (Ok(Report::Fault(r)), DecodeFormat::Text) => {
                 self.summary.fault_reports += 1;

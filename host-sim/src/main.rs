@@ -40,6 +40,8 @@ enum Command {
     Train(host_sim::train::TrainArgs),
     /// Accuracy and confusion matrices of the trained classifiers on a data set's test split.
     Evaluate(host_sim::evaluate::EvaluateArgs),
+    /// The main job in one run: fleet data, training, evaluation, CAN replay, audit, report/index.html.
+    Demo(host_sim::demo::DemoArgs),
 }
 
 #[derive(clap::Args)]
@@ -82,6 +84,7 @@ fn main() {
         Command::Estimate(args) => host_sim::estimate::run(&args),
         Command::Train(args) => host_sim::train::run(&args),
         Command::Evaluate(args) => host_sim::evaluate::run(&args),
+        Command::Demo(args) => host_sim::demo::run(&args),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");

@@ -19,7 +19,9 @@ use crate::trace::{read_trace, Samples, Trace};
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
 use pbm::metrics::nmse_pct;
-use pbm::monitor::{Monitor, MonitorStep};
+use pbm::monitor::MonitorStep;
+use pbm::pipeline::Pipeline;
+use pbm::report::FaultReport;
 use pbm::sensor::adc_from_bar;
 use pbm::twin::SAMPLE_PERIOD_S;
 use pbm::{AdcCounts, BarG, PressureQ24, TwinParams};
@@ -107,22 +109,42 @@ pub struct TraceSummary {
     pub final_bar: Option<f64>,
     /// The last step of the monitor.
     pub last: Option<MonitorStep>,
+    /// The diagnosis the monitor closed for the release (`None` if it closed none).
+    pub diagnosis: Option<FaultReport>,
 }
 
 /// Replays one parsed trace through a fresh monitor of the nominal brake.
 pub fn replay_trace(trace: &Trace) -> Result<Vec<ReplaySample>> {
+    Ok(replay_trace_with_diagnosis(trace)?.0)
+}
+
+/// Replays one parsed trace through the firmware's per-sample path ([`Pipeline::step`]: monitor,
+/// diagnosis policy, CAN schedule) of the nominal brake, and returns every sample with the
+/// diagnosis the controller closes for the release. A recorded trace is one release: the valve
+/// command is on from its first sample; the diagnosis closes at the 60 s timeout or, for a
+/// shorter trace, at its end ([`Pipeline::close`]).
+pub fn replay_trace_with_diagnosis(trace: &Trace) -> Result<(Vec<ReplaySample>, Option<FaultReport>)> {
     trace.check_sample_period(SAMPLE_PERIOD_S, PERIOD_TOLERANCE_S)?;
-    let mut monitor = Monitor::new(&TwinParams::nominal()).map_err(|e| anyhow::anyhow!("nominal twin: {e}"))?;
+    let mut pipeline = Pipeline::new(&TwinParams::nominal()).map_err(|e| anyhow::anyhow!("nominal twin: {e}"))?;
     let adc: Vec<u16> = match &trace.samples {
         Samples::Adc(v) => v.clone(),
         Samples::Bar(v) => v.iter().map(|&p| adc_from_bar(BarG(p)).0).collect(),
     };
-    Ok(trace
+    let mut report = None;
+    let samples = trace
         .t_s
         .iter()
         .zip(adc)
-        .map(|(&t_s, adc)| ReplaySample { t_s, adc, step: monitor.update(AdcCounts(adc), true) })
-        .collect())
+        .map(|(&t_s, adc)| {
+            let step = pipeline.step(AdcCounts(adc), true);
+            report = step.closed.or(report);
+            ReplaySample { t_s, adc, step: step.monitor }
+        })
+        .collect();
+    if let Some((closed, _)) = pipeline.close() {
+        report = Some(closed);
+    }
+    Ok((samples, report))
 }
 
 /// Summarises a replay.
@@ -141,6 +163,7 @@ pub fn summarise(file: &str, label: &str, locomotive: &str, samples: &[ReplaySam
         sensor_faults: samples.len() - valid.len(),
         final_bar: (!tail.is_empty()).then(|| tail.iter().sum::<f64>() / tail.len() as f64),
         last: samples.last().map(|s| s.step),
+        diagnosis: None,
     }
 }
 
@@ -221,10 +244,10 @@ pub fn items(path: &Path, split: Option<&str>) -> Result<Vec<ReplayItem>> {
 /// Replays one item and writes its outputs; the error names the file (and line).
 pub fn replay_item(item: &ReplayItem, out: Option<&Path>, plot: Option<&Path>) -> Result<TraceSummary> {
     let trace = read_trace(&item.path)?;
-    let samples = replay_trace(&trace)?;
+    let (samples, diagnosis) = replay_trace_with_diagnosis(&trace)?;
     let label = item.label.as_deref().or(trace.meta("label")).unwrap_or("-");
     let locomotive = item.locomotive.as_deref().or(trace.meta("locomotive")).unwrap_or("-");
-    let summary = summarise(&item.name, label, locomotive, &samples);
+    let summary = TraceSummary { diagnosis, ..summarise(&item.name, label, locomotive, &samples) };
     if let Some(dir) = out {
         let path = output_path(dir, &item.name, "csv");
         create_parent(&path)?;
@@ -285,10 +308,9 @@ fn summary_csv_row(s: &TraceSummary) -> String {
     )
 }
 
-/// The monitor's diagnosis of a trace, once the classifier is part of [`MonitorStep`]; `-`
-/// until then.
-fn diagnosis(_s: &TraceSummary) -> &'static str {
-    "-"
+/// The monitor's diagnosis of a trace as a display shows it (`-` if none was closed).
+fn diagnosis(s: &TraceSummary) -> String {
+    s.diagnosis.map_or_else(|| "-".to_owned(), |r| r.verdict.to_string())
 }
 
 /// Prints the summary table.

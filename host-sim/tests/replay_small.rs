@@ -249,3 +249,29 @@ fn committed_set_is_reproducible_by_the_generator() {
         assert!(max_diff <= 1, "{}: differs by {max_diff} counts; {regen_msg}", m.file);
     }
 }
+
+/// The controller's own diagnosis, closed by the pipeline at the 60 s timeout, names the class
+/// of every trace of the committed set; `orifice_missing` (not a trained class) is declined.
+#[test]
+fn replay_diagnosis_names_every_trained_class() {
+    use pbm::report::{NoDiagnosis, Verdict};
+    let dir = small();
+    for m in read_manifest(&dir).unwrap() {
+        let (_, report) =
+            host_sim::replay::replay_trace_with_diagnosis(&read_trace(&dir.join(&m.file)).unwrap()).unwrap();
+        let report = report.unwrap_or_else(|| panic!("{}: no diagnosis closed", m.file));
+        assert_eq!(report.time_since_release_cs, 6000, "{}: closed by the 60 s timeout", m.file);
+        match pbm::FaultClass::from_label(&m.label) {
+            Some(pbm::FaultClass::OrificeMissing) => {
+                assert_eq!(report.verdict, Verdict::CannotDiagnose(NoDiagnosis::Implausible), "{}", m.file)
+            }
+            Some(class) => assert!(
+                matches!(report.verdict, Verdict::Class { class: c, .. } if c == class),
+                "{}: {} is not {class}",
+                m.file,
+                report.verdict
+            ),
+            None => panic!("{}: unknown label {}", m.file, m.label),
+        }
+    }
+}

@@ -13,8 +13,18 @@
 //! - `d = 9..=15`: [`FrameError::OutOfOrder`] (stale, reordered or replayed); no resync, so a
 //!   late frame cannot disturb the live sequence. After [`RESYNC_AFTER`] consecutive
 //!   out-of-order frames the tracker resynchronises to the newest one (the sender restarted).
+//!
+//! Heartbeat rule ([`Decoder::receive`], which knows the receive time): the status frame is the
+//! monitor's heartbeat (1 Hz). When a status frame with a valid CRC was seen before but none in
+//! the last [`HEARTBEAT_TIMEOUT_US`], the monitor was lost (power cycle, bus-off, a gap between
+//! two recordings in a log). The decoder then forgets its counter history for both messages,
+//! so the restarted sender's sequence (counters from 0 again) is accepted at once instead of
+//! being flagged as repeated or skipped, and tells the caller, who shows the loss. The price is
+//! that a frame replayed right after such a silence is not recognised as a replay; for a
+//! report-only display message that is acceptable (see can/README.md).
 
 use super::codec::{check_frame, decode_signals, FrameError, MessageKind, Report};
+use super::layout::STATUS;
 
 /// Consecutive out-of-order frames after which the counter tracker accepts the new sequence.
 pub const RESYNC_AFTER: u8 = 3;
@@ -60,19 +70,67 @@ impl CounterTracker {
     }
 }
 
+/// Silence of the heartbeat (no status frame with a valid CRC) after which the monitor counts
+/// as lost: three status cycles (3 s).
+pub const HEARTBEAT_TIMEOUT_US: u64 = 3 * STATUS.cycle_ms as u64 * 1000;
+
+/// What [`Decoder::receive`] made of one frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Reception {
+    /// The report, or why the frame was flagged and skipped.
+    pub result: Result<Report, FrameError>,
+    /// `Some(silence in µs)` when this frame came after the heartbeat had been silent for longer
+    /// than [`HEARTBEAT_TIMEOUT_US`]: the monitor was lost and counter tracking restarted
+    /// before this frame was checked.
+    pub heartbeat_lost_us: Option<u64>,
+}
+
 /// Stream decoder of the monitor's frames, one counter tracker per message.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Decoder {
     trackers: [CounterTracker; 2],
+    /// Receive time of the last status frame with a valid CRC ([`Decoder::receive`] only).
+    last_heartbeat_us: Option<u64>,
 }
 
 impl Decoder {
     /// A decoder that has seen nothing yet.
     pub const fn new() -> Self {
-        Self { trackers: [CounterTracker { last: None, out_of_order_run: 0 }; 2] }
+        Self { trackers: [CounterTracker { last: None, out_of_order_run: 0 }; 2], last_heartbeat_us: None }
     }
 
-    /// Forgets the counter history (for example after a bus-off or a long gap).
+    /// Decodes one frame received at `now_us` (µs of a monotonic receive clock, e.g. a log's
+    /// time stamps): the heartbeat rule of the module doc, then [`Decoder::decode`]. A clock
+    /// that goes backwards counts as no silence.
+    pub fn receive(&mut self, now_us: u64, frame: &impl embedded_can::Frame) -> Reception {
+        let mut heartbeat_lost_us = None;
+        if let Some(last) = self.last_heartbeat_us {
+            let silence = now_us.saturating_sub(last);
+            if silence > HEARTBEAT_TIMEOUT_US {
+                self.reset();
+                heartbeat_lost_us = Some(silence);
+            }
+        }
+        let result = self.decode(frame);
+        let heartbeat = match result {
+            Ok(Report::Status(_)) => true,
+            // A CRC-valid status frame flagged only for its counter or a signal value still
+            // shows that the monitor is alive.
+            Err(
+                FrameError::RepeatedCounter { .. }
+                | FrameError::SkippedCounter { .. }
+                | FrameError::OutOfOrder { .. }
+                | FrameError::InvalidSignal { .. },
+            ) => matches!(MessageKind::of(frame), Ok(MessageKind::Status)),
+            _ => false,
+        };
+        if heartbeat {
+            self.last_heartbeat_us = Some(now_us);
+        }
+        Reception { result, heartbeat_lost_us }
+    }
+
+    /// Forgets the counter and heartbeat history (for example after a bus-off).
     pub fn reset(&mut self) {
         *self = Self::new();
     }

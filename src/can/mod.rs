@@ -2,9 +2,17 @@
 //! transmit schedule. The layout is defined once in `can/brake_monitor.dbc`; [`layout`] is its
 //! copy in code, checked against the DBC by `tests/can_dbc.rs`.
 //!
+//! # The monitor never commands the brake
+//!
 //! The monitor only ever transmits the two frames of [`layout::MESSAGES`] (fault report and
-//! status, extended identifiers, data frames): no requests, no remote frames, nothing that could
-//! command the brake. The decoder flags everything else and yields no report for it.
+//! status, extended identifiers, 8-byte data frames): no requests, no remote frames, nothing
+//! that could command the brake or any other device. Nothing in this crate acts on a received
+//! frame: the monitor's only inputs are the ADC reading and the valve command, passed as
+//! arguments ([`crate::monitor::Monitor::update`], [`crate::pipeline::Pipeline::step`]); no
+//! function takes a frame and changes the monitor's state or drives an output. The [`decoder`]
+//! is for receivers (the cab display, the host tools); it flags everything that is not one of
+//! the two messages and yields no report for it. `tests/can_codec.rs` checks that the pipeline
+//! emits nothing but these two identifiers, whatever its inputs.
 //!
 //! - [`frame`]: a plain frame type implementing [`embedded_can::Frame`].
 //! - [`layout`]: identifiers, signals, value codes.
@@ -19,6 +27,6 @@ pub mod layout;
 pub mod reporter;
 
 pub use codec::{decode_frame, encode_fault, encode_status, quantize_fault, FrameError, MessageKind, Report};
-pub use decoder::Decoder;
+pub use decoder::{Decoder, Reception, HEARTBEAT_TIMEOUT_US};
 pub use frame::CanFrame;
 pub use reporter::{CanReporter, Outbox};

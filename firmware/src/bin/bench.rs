@@ -13,11 +13,11 @@
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
 use pbm::classifier::diagnose;
-use pbm::features::FeatureExtractor;
+use pbm::features::ReleaseFeatures;
+use pbm::pipeline::Pipeline;
 use pbm::{AdcCounts, Twin, TwinParams};
 use pbm_firmware::adc::ADC_TRACE;
 use pbm_firmware::console::exit;
-use pbm_firmware::pipeline::Pipeline;
 use pbm_firmware::{println, stack, time_driver};
 
 /// Instructions per SysTick count under `-icount shift=0` (1 ns each) at 25 MHz.
@@ -94,29 +94,41 @@ fn main() -> ! {
     println!("calibration_measured_instr={cal}");
     println!("bracket_overhead_instr={overhead}");
 
-    // The firmware's per-sample pipeline over the compiled-in trace.
+    // The core's per-sample pipeline (the monitor task's work) over the compiled-in trace.
     let (Ok(mut pipeline), Ok(mut twin)) = (Pipeline::nominal(), Twin::new(&TwinParams::nominal())) else {
         println!("bench: nominal parameters rejected");
         exit(false)
     };
     let mut per_sample = Stats::default();
+    let mut closing = Stats::default();
     let mut twin_only = Stats::default();
     let mut features_cost = Stats::default();
-    let mut features = FeatureExtractor::new();
+    let mut features = ReleaseFeatures::new();
     let mut frames = 0usize;
     for &code in ADC_TRACE.iter() {
-        let (instr, (step, outbox)) = measure(overhead, || pipeline.step(AdcCounts(code), true));
-        per_sample.add(instr);
-        frames += outbox.as_slice().len();
+        let (instr, step) = measure(overhead, || pipeline.step(AdcCounts(code), true));
+        // The sample that closes the diagnosis also runs the classifier: counted apart.
+        if step.closed.is_some() {
+            closing.add(instr);
+        } else {
+            per_sample.add(instr);
+        }
+        frames += step.frames.as_slice().len();
         twin_only.add(measure(overhead, || twin.update(true)).0);
-        features_cost.add(measure(overhead, || features.update(&step)).0);
+        features_cost.add(measure(overhead, || features.update(&step.monitor)).0);
     }
-    let (classify, verdict) = measure(overhead, || diagnose(&features));
+    let (close_instr, closed) = measure(overhead, || pipeline.close());
+    if let Some((_, outbox)) = closed {
+        closing.add(close_instr);
+        frames += outbox.as_slice().len();
+    }
+    let (classify, verdict) = measure(overhead, || diagnose(pipeline.monitor().features()));
 
-    println!("samples={}", per_sample.n);
+    println!("samples={}", ADC_TRACE.len());
     println!("frames={frames}");
     println!("pipeline_instr_per_sample_mean={}", per_sample.mean());
     println!("pipeline_instr_per_sample_max={}", per_sample.max);
+    println!("closing_sample_instr={}", closing.max);
     println!("twin_instr_per_sample_mean={}", twin_only.mean());
     println!("twin_instr_per_sample_max={}", twin_only.max);
     println!("features_instr_per_sample_mean={}", features_cost.mean());

@@ -1,12 +1,18 @@
-//! `monitor`: the brake monitor as embassy tasks.
+//! `monitor`: the brake monitor as embassy tasks, a thin shell over the core's per-sample path
+//! [`pbm::pipeline::Pipeline`] (the one `host-sim replay --can-log` runs too).
 //!
 //! ```text
 //!  adc_task ──SAMPLES (4)──▶ monitor_task ──FRAMES (8)──▶ can_task ──▶ CAN (candump on QEMU)
-//!  100 Hz ticker             Monitor::update              embedded_can::blocking::Can
-//!                            + CanReporter::step
+//!  100 Hz ticker             Pipeline::step / close       embedded_can::blocking::Can
+//!  ADC + valve command       (monitor, diagnosis, CAN schedule)
 //!  watchdog_task: every 500 ms checks that the ADC and monitor tasks advanced, then feeds the
 //!  watchdog; a stalled pipeline is not fed (a real IWDG then resets the controller).
 //! ```
+//!
+//! Diagnosis (issue 7 item 2, policy in [`pbm::pipeline`]): the valve command is an input of
+//! every sample; its rising edge opens a diagnosis; the command falling, the 60 s window or the
+//! end of the ADC input ([`Pipeline::close`]) closes it, runs the int8 classifier once and
+//! schedules the fault report frame.
 //!
 //! Full channels (both bounded, [`SAMPLE_QUEUE`] and [`FRAME_QUEUE`]):
 //! - SAMPLES full: the monitor is more than 40 ms behind. The ADC task does not wait (the
@@ -18,11 +24,15 @@
 //!   not wait either; the frame is dropped and counted in `dropped_frames`. Status frames
 //!   repeat every second and the fault report is repeated while the release runs, so the
 //!   display catches up when the bus recovers.
+//! - The end-of-input message and the frames of the closing diagnosis are the exception: they
+//!   are sent with `send().await` (wait for room), because losing them would lose the verdict.
 //!
-//! On QEMU the ADC plays the trace compiled into flash (see `build.rs`, `PBM_FW_TRACE`), every
-//! sample with the valve command on (one release, as `host-sim replay` takes a trace). The end of
-//! the trace closes the release; the run exits 0 when nothing was dropped or stalled. Standard
-//! output is exactly the candump log; logs go to standard error.
+//! On QEMU the ADC plays the trace compiled into flash (see `build.rs`, `PBM_FW_TRACE`) and the
+//! valve command is on for every sample of it: a recorded trace is one release from the
+//! command (SPEC §5), exactly as `host-sim replay` reads it. The end of the trace closes the
+//! release; the run exits 0 when nothing was dropped or stalled. Standard output is exactly the
+//! candump log; logs go to standard error. Nothing here links `core::fmt` (flash budget): logs
+//! are built with [`Text`].
 #![no_std]
 #![no_main]
 
@@ -34,12 +44,14 @@ use embassy_sync::channel::Channel;
 use embassy_time::{Duration, Ticker};
 use embedded_can::blocking::Can as _;
 use pbm::can::CanFrame;
+use pbm::pipeline::Pipeline;
+use pbm::report::{FaultReport, NoDiagnosis, Verdict};
+use pbm::sensor::SensorFault;
 use pbm::AdcCounts;
 use pbm_firmware::adc::{PressureAdc, TraceAdc, ADC_TRACE, ADC_TRACE_NAME};
 use pbm_firmware::candump::CandumpCan;
-use pbm_firmware::console::exit;
-use pbm_firmware::pipeline::Pipeline;
-use pbm_firmware::{eprintln, executor, stack, time_driver};
+use pbm_firmware::console::{exit, Text};
+use pbm_firmware::{executor, stack, time_driver};
 
 /// Depth of the ADC → monitor channel (samples).
 const SAMPLE_QUEUE: usize = 4;
@@ -49,13 +61,14 @@ const FRAME_QUEUE: usize = 8;
 const WATCHDOG_PERIOD: Duration = Duration::from_millis(500);
 
 enum AdcMessage {
-    /// Sample `index` of the release.
+    /// Sample `index` of the input, with the valve command at that sample.
     Sample { index: u32, adc: AdcCounts, valve_open: bool },
-    /// The ADC source ended after `samples` samples: close the release.
+    /// The ADC source ended after `samples` samples: close the diagnosis.
     End { samples: u32 },
 }
 
 enum TxMessage {
+    /// A frame produced at sample `sample` (its time stamp).
     Frame { sample: u32, frame: CanFrame },
     End,
 }
@@ -71,6 +84,7 @@ struct Health {
     dropped_frames: AtomicU32,
     tx_errors: AtomicU32,
     sensor_fault_samples: AtomicU32,
+    diagnoses: AtomicU32,
     watchdog_feeds: AtomicU32,
     stalled: AtomicBool,
     adc_done: AtomicBool,
@@ -83,6 +97,7 @@ static HEALTH: Health = Health {
     dropped_frames: AtomicU32::new(0),
     tx_errors: AtomicU32::new(0),
     sensor_fault_samples: AtomicU32::new(0),
+    diagnoses: AtomicU32::new(0),
     watchdog_feeds: AtomicU32::new(0),
     stalled: AtomicBool::new(false),
     adc_done: AtomicBool::new(false),
@@ -92,18 +107,15 @@ static HEALTH: Health = Health {
 fn main() -> ! {
     stack::paint();
     let Some(peripherals) = cortex_m::Peripherals::take() else {
-        eprintln!("monitor: core peripherals already taken");
+        Text::new().str("monitor: core peripherals already taken").eprint();
         exit(false)
     };
     time_driver::init(peripherals.SYST);
-    let pipeline = match Pipeline::nominal() {
-        Ok(p) => p,
-        Err(e) => {
-            eprintln!("monitor: nominal parameters rejected: {e}");
-            exit(false)
-        }
+    let Ok(pipeline) = Pipeline::nominal() else {
+        Text::new().str("monitor: nominal parameters rejected").eprint();
+        exit(false)
     };
-    eprintln!("monitor: trace `{}`, {} samples", ADC_TRACE_NAME, ADC_TRACE.len());
+    Text::new().str("monitor: trace `").str(ADC_TRACE_NAME).str("`, ").u32(ADC_TRACE.len() as u32).str(" samples").eprint();
     executor::run(move |spawner: Spawner| {
         let spawned = (|| -> Result<(), embassy_executor::SpawnError> {
             spawner.spawn(can_task(CandumpCan::new())?);
@@ -112,14 +124,14 @@ fn main() -> ! {
             spawner.spawn(adc_task(TraceAdc::new(&ADC_TRACE))?);
             Ok(())
         })();
-        if let Err(e) = spawned {
-            eprintln!("monitor: cannot spawn tasks: {e}");
+        if spawned.is_err() {
+            Text::new().str("monitor: cannot spawn tasks").eprint();
             exit(false)
         }
     })
 }
 
-/// Samples the pressure at 100 Hz.
+/// Samples the pressure and the valve command at 100 Hz.
 #[embassy_executor::task]
 async fn adc_task(mut adc: TraceAdc) {
     let mut ticker = Ticker::every(Duration::from_millis(10));
@@ -128,7 +140,8 @@ async fn adc_task(mut adc: TraceAdc) {
         ticker.next().await;
         match adc.read() {
             Ok(code) => {
-                // On a board: valve_open = the valve-command input pin.
+                // On a board: valve_open = the valve-command input pin. On QEMU the command is
+                // on for the whole recorded release (SPEC §5: a trace starts at the command).
                 let msg = AdcMessage::Sample { index, adc: code, valve_open: true };
                 if SAMPLES.try_send(msg).is_err() {
                     HEALTH.dropped_samples.fetch_add(1, Ordering::Relaxed);
@@ -136,8 +149,8 @@ async fn adc_task(mut adc: TraceAdc) {
                 index = index.wrapping_add(1);
                 HEALTH.adc_samples.fetch_add(1, Ordering::Relaxed);
             }
-            Err(end) => {
-                eprintln!("monitor: ADC source ended ({end:?}) after {} samples", adc.played());
+            Err(_) => {
+                Text::new().str("monitor: ADC source ended after ").u32(adc.played() as u32).str(" samples").eprint();
                 HEALTH.adc_done.store(true, Ordering::Relaxed);
                 // The end must not be lost: wait for room.
                 SAMPLES.send(AdcMessage::End { samples: index }).await;
@@ -147,17 +160,44 @@ async fn adc_task(mut adc: TraceAdc) {
     }
 }
 
-/// Runs the core monitor and the CAN schedule on every sample.
+/// Logs a closed diagnosis on standard error.
+fn log_report(sample: u32, why: &str, r: &FaultReport) {
+    let mut t = Text::new().str("monitor: diagnosis closed (").str(why).str(") at sample ").u32(sample).str(": ");
+    t = match r.verdict {
+        Verdict::Class { class, confidence } => t.str(class.label()).str(" (confidence ").u32(confidence.into()).str("/255)"),
+        Verdict::CannotDiagnose(NoDiagnosis::SensorFault(SensorFault::OpenCircuit)) => {
+            t.str("cannot diagnose: sensor open circuit")
+        }
+        Verdict::CannotDiagnose(NoDiagnosis::SensorFault(SensorFault::ShortCircuit)) => {
+            t.str("cannot diagnose: sensor short circuit")
+        }
+        Verdict::CannotDiagnose(NoDiagnosis::TooShort) => t.str("cannot diagnose: release too short"),
+        Verdict::CannotDiagnose(NoDiagnosis::Implausible) => t.str("cannot diagnose: implausible features"),
+    };
+    t.str(", supply ")
+        .u32(r.supply_mbar.into())
+        .str(" mbar, leak ")
+        .u32(r.leak_um.into())
+        .str(" um, completed ")
+        .str(if r.release_completed { "yes" } else { "no" })
+        .eprint();
+}
+
+/// Runs the core pipeline (monitor, diagnosis policy, CAN schedule) on every sample.
 #[embassy_executor::task]
 async fn monitor_task(mut pipeline: Pipeline) {
     loop {
         match SAMPLES.receive().await {
             AdcMessage::Sample { index, adc, valve_open } => {
-                let (step, outbox) = pipeline.step(adc, valve_open);
-                if step.measured.is_err() {
+                let step = pipeline.step(adc, valve_open);
+                if step.monitor.measured.is_err() {
                     HEALTH.sensor_fault_samples.fetch_add(1, Ordering::Relaxed);
                 }
-                for frame in outbox.as_slice() {
+                if let Some(report) = &step.closed {
+                    HEALTH.diagnoses.fetch_add(1, Ordering::Relaxed);
+                    log_report(index, if valve_open { "timeout" } else { "valve closed" }, report);
+                }
+                for frame in step.frames.as_slice() {
                     if FRAMES.try_send(TxMessage::Frame { sample: index, frame: *frame }).is_err() {
                         HEALTH.dropped_frames.fetch_add(1, Ordering::Relaxed);
                     }
@@ -165,13 +205,15 @@ async fn monitor_task(mut pipeline: Pipeline) {
                 HEALTH.monitor_steps.fetch_add(1, Ordering::Relaxed);
             }
             AdcMessage::End { samples } => {
-                let est = pipeline.monitor().estimator().estimates();
-                eprintln!(
-                    "monitor: release closed after {samples} samples; estimator {:?}, supply {} mbar, leak {} um",
-                    est.phase,
-                    est.supply_mbar(),
-                    est.leak_um()
-                );
+                // The last transmit tick is stamped with the last sample's time, as on the host.
+                let last = samples.saturating_sub(1);
+                if let Some((report, frames)) = pipeline.close() {
+                    HEALTH.diagnoses.fetch_add(1, Ordering::Relaxed);
+                    log_report(last, "end of input", &report);
+                    for frame in frames.as_slice() {
+                        FRAMES.send(TxMessage::Frame { sample: last, frame: *frame }).await;
+                    }
+                }
                 FRAMES.send(TxMessage::End).await;
                 return;
             }
@@ -192,23 +234,33 @@ async fn can_task(mut can: CandumpCan) {
             }
             TxMessage::End => {
                 let h = &HEALTH;
-                let dropped_samples = h.dropped_samples.load(Ordering::Relaxed);
-                let dropped_frames = h.dropped_frames.load(Ordering::Relaxed);
-                let tx_errors = h.tx_errors.load(Ordering::Relaxed);
+                let load = |a: &AtomicU32| a.load(Ordering::Relaxed);
+                let dropped_samples = load(&h.dropped_samples);
+                let dropped_frames = load(&h.dropped_frames);
+                let tx_errors = load(&h.tx_errors);
                 let stalled = h.stalled.load(Ordering::Relaxed);
-                eprintln!(
-                    "monitor: {} samples, {} frames sent, {} sensor-fault samples, dropped {} samples / {} frames, \
-                     {} tx errors, {} watchdog feeds, peak stack {} bytes{}",
-                    h.monitor_steps.load(Ordering::Relaxed),
-                    can.sent(),
-                    h.sensor_fault_samples.load(Ordering::Relaxed),
-                    dropped_samples,
-                    dropped_frames,
-                    tx_errors,
-                    h.watchdog_feeds.load(Ordering::Relaxed),
-                    stack::peak_used(),
-                    if stalled { ", STALLED" } else { "" }
-                );
+                Text::new()
+                    .str("monitor: ")
+                    .u32(load(&h.monitor_steps))
+                    .str(" samples, ")
+                    .u32(can.sent())
+                    .str(" frames sent, ")
+                    .u32(load(&h.diagnoses))
+                    .str(" diagnoses, ")
+                    .u32(load(&h.sensor_fault_samples))
+                    .str(" sensor-fault samples, dropped ")
+                    .u32(dropped_samples)
+                    .str(" samples / ")
+                    .u32(dropped_frames)
+                    .str(" frames, ")
+                    .u32(tx_errors)
+                    .str(" tx errors, ")
+                    .u32(load(&h.watchdog_feeds))
+                    .str(" watchdog feeds, peak stack ")
+                    .u32(stack::peak_used() as u32)
+                    .str(" bytes")
+                    .str(if stalled { ", STALLED" } else { "" })
+                    .eprint();
                 exit(dropped_samples == 0 && dropped_frames == 0 && tx_errors == 0 && !stalled)
             }
         }
@@ -231,7 +283,13 @@ async fn watchdog_task() {
             HEALTH.watchdog_feeds.fetch_add(1, Ordering::Relaxed);
         } else {
             HEALTH.stalled.store(true, Ordering::Relaxed);
-            eprintln!("monitor: watchdog: pipeline stalled (adc {adc}, monitor {monitor}); not feeding");
+            Text::new()
+                .str("monitor: watchdog: pipeline stalled (adc ")
+                .u32(adc)
+                .str(", monitor ")
+                .u32(monitor)
+                .str("); not feeding")
+                .eprint();
         }
         (last_adc, last_monitor) = (adc, monitor);
     }

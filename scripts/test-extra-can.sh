@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# CAN checks that `cargo test --workspace` does not cover (issue 8); scripts/test-all.sh (CI)
+# runs every scripts/test-extra-*.sh. The CAN unit, property and integration tests themselves
+# run in `cargo test --workspace` (tests/can_dbc.rs, tests/can_codec.rs, host-sim/tests/can.rs).
+#
+#   1. host-sim with the `socketcan` feature (off by default, so the workspace build never
+#      compiles it): cargo check, and clippy with -D warnings.
+#   2. Python cantools decodes every frame host-sim emits, unchanged, to host-sim's values
+#      (scripts/can-cantools-check.sh).
+#   3. The decoder's fuzz target (fuzz/fuzz_targets/can_decode.rs) builds and runs for a few
+#      seconds, only where cargo-fuzz and a nightly toolchain are installed (never required).
+#      CAN_FUZZ=0 skips it; CAN_FUZZ_SECONDS sets the run time (default 10).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+step() { printf '\n--- can: %s\n' "$*"; }
+
+step "host-sim --features socketcan: check + clippy"
+cargo check --quiet -p host-sim --features socketcan
+cargo clippy --quiet -p host-sim --features socketcan --all-targets -- -D warnings
+
+step "cantools decodes every frame host-sim emits"
+bash scripts/can-cantools-check.sh
+
+step "fuzz target can_decode"
+if [ "${CAN_FUZZ:-1}" = 0 ]; then
+    echo "skipped (CAN_FUZZ=0)"
+elif command -v cargo-fuzz >/dev/null 2>&1 && rustup toolchain list 2>/dev/null | grep -q '^nightly'; then
+    (
+        cd fuzz
+        cargo +nightly fuzz build can_decode
+        mkdir -p corpus/can_decode
+        cargo +nightly fuzz run can_decode -- -max_total_time="${CAN_FUZZ_SECONDS:-10}" -print_final_stats=1 2>&1 \
+            | grep -E '^(Done|stat::number_of_executed_units|==[0-9]+== ERROR)|panicked' || true
+        # libFuzzer exits non-zero on a crash; PIPESTATUS keeps that from being hidden by grep.
+        exit "${PIPESTATUS[0]}"
+    )
+else
+    echo "skipped: cargo-fuzz or a nightly toolchain is not installed (not required;"
+    echo "  to run it: cargo install cargo-fuzz && rustup toolchain install nightly,"
+    echo "  then: cd fuzz && cargo +nightly fuzz run can_decode)"
+fi
+echo "test-extra-can: done"
