@@ -55,6 +55,8 @@ pub const SUPPLY_SPREAD_BAR: f64 = 0.035;
 pub const SCREEN_ITER: usize = 6;
 /// Single mechanisms refined to convergence after screening (best screening RSS first).
 pub const REFINED_SINGLES: usize = 4;
+/// Pairs refined to convergence after screening.
+pub const REFINED_PAIRS: usize = 2;
 /// Pairs are formed from this many best single mechanisms.
 pub const PAIR_POOL: usize = 4;
 /// Names of the base parameters, in vector order.
@@ -457,6 +459,39 @@ impl Problem<'_> {
         pbm::metrics::nmse_pct(&measured, &model).unwrap_or(f64::NAN)
     }
 
+    /// Screens every job (candidate, starts) with [`SCREEN_ITER`] iterations from each start,
+    /// then refines the `refine` best from their best point; sorted by RSS.
+    fn screen_and_refine(
+        &self,
+        jobs: &[(Vec<Effect>, Vec<Vec<f64>>)],
+        refine: usize,
+        max_iter: usize,
+    ) -> Vec<(Vec<Effect>, LmResult, usize)> {
+        let mut screened: Vec<(Vec<Effect>, LmResult, usize)> = jobs
+            .par_iter()
+            .filter_map(|(effects, starts)| {
+                self.fit(effects, starts, SCREEN_ITER).map(|(lm, ev)| (effects.clone(), lm, ev))
+            })
+            .collect();
+        screened.sort_by(|a, b| a.1.rss.total_cmp(&b.1.rss));
+        let mut refined: Vec<(Vec<Effect>, LmResult, usize)> = screened
+            .into_par_iter()
+            .enumerate()
+            .map(|(i, (effects, lm, ev))| {
+                if i < refine {
+                    if let Some((r, ev2)) = self.fit(&effects, std::slice::from_ref(&lm.x), max_iter) {
+                        if r.rss <= lm.rss {
+                            return (effects, r, ev + ev2);
+                        }
+                    }
+                }
+                (effects, lm, ev)
+            })
+            .collect();
+        refined.sort_by(|a, b| a.1.rss.total_cmp(&b.1.rss));
+        refined
+    }
+
     fn fit(&self, effects: &[Effect], starts: &[Vec<f64>], max_iter: usize) -> Option<(LmResult, usize)> {
         let f = |x: &[f64]| self.residual(x, effects);
         let results: Vec<LmResult> = starts.par_iter().filter_map(|x0| levenberg_marquardt(&f, x0, max_iter)).collect();
@@ -715,35 +750,24 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         delta_bic: 0.0,
         evaluations: evals,
     };
-    // Singles: a short screening fit from every start, then the most promising mechanisms are
-    // refined to convergence from their best screening point (the others keep their screening
-    // fit: they only ever lose, so a few more iterations would not change the verdict).
-    let screened: Vec<(Effect, LmResult, usize)> = Effect::ALL
-        .par_iter()
-        .filter_map(|&e| {
-            let starts: Vec<Vec<f64>> =
-                e.starts().iter().map(|&m| base_lm.x.iter().copied().chain([effect_u(e, m)]).collect()).collect();
-            prob.fit(&[e], &starts, SCREEN_ITER).map(|(lm, ev)| (e, lm, ev))
+    // Singles, then pairs of the best singles: every candidate gets a short screening fit from
+    // each start (one start is the base optimum with the mechanism off, so no candidate ends
+    // worse than the base it contains), then the most promising are refined to convergence.
+    let off_u = |e: Effect| effect_u(e, e.off_value());
+    let single_jobs: Vec<(Vec<Effect>, Vec<Vec<f64>>)> = Effect::ALL
+        .iter()
+        .map(|&e| {
+            let starts = e
+                .starts()
+                .iter()
+                .map(|&m| effect_u(e, m))
+                .chain([off_u(e)])
+                .map(|u| base_lm.x.iter().copied().chain([u]).collect())
+                .collect();
+            (vec![e], starts)
         })
         .collect();
-    let mut order: Vec<usize> = (0..screened.len()).collect();
-    order.sort_by(|&a, &b| screened[a].1.rss.total_cmp(&screened[b].1.rss));
-    let refine: Vec<usize> = order.iter().copied().take(REFINED_SINGLES).collect();
-    let mut fits: Vec<(Vec<Effect>, LmResult, usize)> = screened
-        .par_iter()
-        .enumerate()
-        .map(|(i, (e, lm, ev))| {
-            if refine.contains(&i) {
-                if let Some((r, ev2)) = prob.fit(&[*e], std::slice::from_ref(&lm.x), opts.max_iter) {
-                    if r.rss <= lm.rss {
-                        return (vec![*e], r, ev + ev2);
-                    }
-                }
-            }
-            (vec![*e], lm.clone(), *ev)
-        })
-        .collect();
-    fits.sort_by(|a, b| a.1.rss.total_cmp(&b.1.rss));
+    let mut fits = prob.screen_and_refine(&single_jobs, REFINED_SINGLES, opts.max_iter);
     if opts.pairs && fits.len() >= 2 {
         let top: Vec<(Effect, f64, Vec<f64>)> =
             fits.iter().take(PAIR_POOL).map(|(e, lm, _)| (e[0], lm.x[nb], lm.x[..nb].to_vec())).collect();
@@ -752,25 +776,17 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
             for j in i + 1..top.len() {
                 // Canonical order (that of `Effect::ALL`), so `a+b` names are stable.
                 let (a, b) = if top[i].0 <= top[j].0 { (&top[i], &top[j]) } else { (&top[j], &top[i]) };
-                pair_jobs.push((a.clone(), b.clone()));
-            }
-        }
-        let pairs: Vec<(Vec<Effect>, LmResult, usize)> = pair_jobs
-            .par_iter()
-            .filter_map(|(a, b)| {
-                let effects = vec![a.0, b.0];
-                let off_a = effect_u(a.0, a.0.off_value());
-                let off_b = effect_u(b.0, b.0.off_value());
+                let (oa, ob) = (off_u(a.0), off_u(b.0));
                 // From each single's optimum with the other mechanism barely on, and halfway.
                 let starts = vec![
-                    a.2.iter().copied().chain([a.1, 0.9 * off_b + 0.1 * b.1]).collect::<Vec<f64>>(),
-                    b.2.iter().copied().chain([0.9 * off_a + 0.1 * a.1, b.1]).collect(),
-                    a.2.iter().copied().chain([0.5 * (a.1 + off_a), 0.5 * (b.1 + off_b)]).collect(),
+                    a.2.iter().copied().chain([a.1, 0.9 * ob + 0.1 * b.1]).collect::<Vec<f64>>(),
+                    b.2.iter().copied().chain([0.9 * oa + 0.1 * a.1, b.1]).collect(),
+                    a.2.iter().copied().chain([0.5 * (a.1 + oa), 0.5 * (b.1 + ob)]).collect(),
                 ];
-                prob.fit(&effects, &starts, opts.max_iter).map(|(lm, ev)| (effects, lm, ev))
-            })
-            .collect();
-        fits.extend(pairs);
+                pair_jobs.push((vec![a.0, b.0], starts));
+            }
+        }
+        fits.extend(prob.screen_and_refine(&pair_jobs, REFINED_PAIRS, opts.max_iter));
     }
 
     // Effective sample count from the best model's residual correlation.
