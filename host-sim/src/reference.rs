@@ -173,23 +173,7 @@ impl ReferenceTwin {
 
         let s = self.state;
         let a = q.piston_area_m2;
-        let l = q.stroke.0;
-        // Piston with the progressive spring F0 + K (1 + β x/L) x.
-        let g = q.coulomb_n + (q.static_n - q.coulomb_n) * (-(s.v / q.stribeck_m_per_s).powi(2)).exp();
-        let zdot_nl_per_v = q.sigma0_n_per_m * s.z / g;
-        let spring = q.preload_n + q.spring_rate_n_per_m * (1.0 + e.progressive_spring * s.x / l) * s.x;
-        let f_ext = (s.p - P0) * a - spring - q.sigma0_n_per_m * s.z + q.sigma1_n_s_per_m * s.v.abs() * zdot_nl_per_v;
-        let c = q.sigma1_n_s_per_m + q.viscous_n_s_per_m;
-        let mut v = (s.v + h / q.mass_kg * f_ext) / (1.0 + h * c / q.mass_kg);
-        let mut x = s.x + h * v;
-        if x <= 0.0 {
-            x = 0.0;
-            v = 0.0;
-        } else if x >= l {
-            x = l;
-            v = 0.0;
-        }
-        let z = s.z + h * (v - v.abs() * zdot_nl_per_v);
+        let (x, v, z) = piston_step(&q, &s, h, e.progressive_spring);
         let dx = x - s.x;
 
         // Chamber energy balance: V dp = (k−1)(cp Ts m_in − cp T m_out + Q) dt − k p dV, with the
@@ -259,24 +243,7 @@ impl ReferenceTwin {
         let q = &self.params;
         let s = self.state;
         let a = q.piston_area_m2;
-        let l = q.stroke.0;
-
-        // Piston: M dv/dt = (P − P0) A − F0 − K x − F_f with LuGre F_f; (sigma1 + B) v implicit.
-        let g = q.coulomb_n + (q.static_n - q.coulomb_n) * (-(s.v / q.stribeck_m_per_s).powi(2)).exp();
-        let zdot_nl_per_v = q.sigma0_n_per_m * s.z / g; // dz/dt = v − |v| · this
-        let f_ext = (s.p - P0) * a - q.preload_n - q.spring_rate_n_per_m * s.x - q.sigma0_n_per_m * s.z
-            + q.sigma1_n_s_per_m * s.v.abs() * zdot_nl_per_v;
-        let c = q.sigma1_n_s_per_m + q.viscous_n_s_per_m;
-        let mut v = (s.v + h / q.mass_kg * f_ext) / (1.0 + h * c / q.mass_kg);
-        let mut x = s.x + h * v;
-        if x <= 0.0 {
-            x = 0.0;
-            v = 0.0;
-        } else if x >= l {
-            x = l;
-            v = 0.0;
-        }
-        let z = s.z + h * (v - v.abs() * zdot_nl_per_v);
+        let (x, v, z) = piston_step(q, &s, h, 0.0);
         let dx = x - s.x;
 
         // Chamber: dP/dt = kRT/V (m_in − m_leak) − kP/V dV/dt.
@@ -292,4 +259,31 @@ impl ReferenceTwin {
     pub fn pressure_bar_g(&self) -> f64 {
         self.state.p / 1e5 - 1.0
     }
+}
+
+/// One step of the piston: `M dv/dt = (P − P0) A − F0 − K (1 + β x/L) x − F_f` with LuGre friction
+/// `F_f` (`β` = `progressive`, 0 for the base spring), `(sigma1 + B) v` implicit, inelastic end
+/// stops. Returns the new `(x, v, z)`.
+fn piston_step(q: &TwinParams, s: &ReferenceState, h: f64, progressive: f64) -> (f64, f64, f64) {
+    let l = q.stroke.0;
+    let g = q.coulomb_n + (q.static_n - q.coulomb_n) * (-(s.v / q.stribeck_m_per_s).powi(2)).exp();
+    let zdot_nl_per_v = q.sigma0_n_per_m * s.z / g; // dz/dt = v − |v| · this
+    // With β = 0 the factor is exactly 1.0, so the base spring is F0 + K x to the last bit.
+    let f_ext = (s.p - P0) * q.piston_area_m2
+        - q.preload_n
+        - q.spring_rate_n_per_m * (1.0 + progressive * s.x / l) * s.x
+        - q.sigma0_n_per_m * s.z
+        + q.sigma1_n_s_per_m * s.v.abs() * zdot_nl_per_v;
+    let c = q.sigma1_n_s_per_m + q.viscous_n_s_per_m;
+    let mut v = (s.v + h / q.mass_kg * f_ext) / (1.0 + h * c / q.mass_kg);
+    let mut x = s.x + h * v;
+    if x <= 0.0 {
+        x = 0.0;
+        v = 0.0;
+    } else if x >= l {
+        x = l;
+        v = 0.0;
+    }
+    let z = s.z + h * (v - v.abs() * zdot_nl_per_v);
+    (x, v, z)
 }

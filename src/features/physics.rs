@@ -70,10 +70,12 @@ impl LineFit {
 
     /// Slope, bar/s (0 with too few samples).
     fn slope(&self) -> f32 {
-        if self.n < BAND_MIN_SAMPLES || !(self.ctt > 0.0) {
-            return 0.0;
+        // `ctt` is a sum of squares: > 0, or 0 (or NaN from a bad input) when there is no slope.
+        if self.n >= BAND_MIN_SAMPLES && self.ctt > 0.0 {
+            self.ctp / self.ctt
+        } else {
+            0.0
         }
-        self.ctp / self.ctt
     }
 }
 
