@@ -1,21 +1,17 @@
 #!/usr/bin/env bash
-# CAN checks beyond `cargo test --workspace` (issue 8): the SocketCAN build of host-sim
-# (feature off by default, so the plain workspace build never compiles it), its lints, the CAN
-# tests, and the off-the-shelf DBC tool check with Python cantools.
+# Every CAN check of issue 8 in one command, for working on the CAN code: the CAN tests (DBC vs
+# code, codec, E2E, decoder, heartbeat, schedule, pipeline ids, logs, display, mock bus) and
+# scripts/test-extra-can.sh (socketcan feature build + clippy, cantools, fuzz target if
+# cargo-fuzz is installed). CI runs the same tests in `cargo test --workspace` and the extra
+# script through scripts/test-all.sh.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-step() { printf '\n=== %s\n' "$*"; }
-
-step "host-sim with --features socketcan (check + clippy)"
-cargo check -p host-sim --features socketcan
-cargo clippy -p host-sim --features socketcan --all-targets -- -D warnings
-
-step "CAN tests (DBC vs code, codec, E2E, decoder, schedule, logs, mock bus)"
+printf '\n=== CAN tests\n'
 cargo test -q -p parking-brake-monitor --test can_dbc --test can_codec
 cargo test -q -p parking-brake-monitor --lib can::
 cargo test -q -p host-sim --lib can_
 cargo test -q -p host-sim --test can
 
-step "cantools decodes every frame host-sim emits"
-bash scripts/can-cantools-check.sh
+printf '\n=== CAN extra checks\n'
+bash scripts/test-extra-can.sh

@@ -1,6 +1,7 @@
 //! Fuzz target: the CAN decoder must never panic on any frame sequence, and every frame it
 //! accepts must be canonical (re-encoding the decoded report with its counter gives back the
-//! very same frame). The same bytes are also fed as a candump log through `host-sim can decode`.
+//! very same frame), with the heartbeat timeout in play. The same bytes are also fed as a
+//! candump log through `host-sim can decode`.
 #![no_main]
 
 use embedded_can::{ExtendedId, Frame, Id, StandardId};
@@ -47,8 +48,10 @@ fn frames(mut data: &[u8]) -> Vec<CanFrame> {
 
 fuzz_target!(|data: &[u8]| {
     let mut decoder = Decoder::new();
-    for f in frames(data) {
-        if let Ok(report) = decoder.decode(&f) {
+    // Frames 1 s apart, so runs of non-status frames also exercise the heartbeat timeout.
+    for (i, f) in frames(data).into_iter().enumerate() {
+        let reception = decoder.receive(i as u64 * 1_000_000, &f);
+        if let Ok(report) = reception.result {
             let (again, counter) = decode_frame(&f).expect("stream-accepted frames decode alone");
             assert_eq!(again, report);
             let re = match report {
