@@ -58,19 +58,8 @@ pub const QUICK_TEST_PER_CLASS: usize = 10;
 /// Stamp file in the data directory: what wrote it, with which seed, version and options.
 pub const STAMP: &str = "demo-stamp.txt";
 /// Section ids every report has (the tests look for them).
-pub const REQUIRED_SECTIONS: [&str; 11] = [
-    "run",
-    "summary",
-    "data",
-    "classifiers",
-    "confusion",
-    "early",
-    "release",
-    "can",
-    "estimator",
-    "audit",
-    "firmware",
-];
+pub const REQUIRED_SECTIONS: [&str; 11] =
+    ["run", "summary", "data", "classifiers", "confusion", "early", "release", "can", "estimator", "audit", "firmware"];
 /// Test accuracies the paper reports for its three classifiers on its real data (SPEC §6), %.
 /// These are the paper's published figures, shown beside this run's for comparison.
 pub const PAPER_REPORTED_PCT: [(&str, f64); 3] = [("paper_raw", 72.0), ("paper_residual", 81.2), ("paper_theta", 96.0)];
@@ -165,6 +154,8 @@ pub struct StageTime {
     pub name: String,
     /// Wall time.
     pub elapsed: Duration,
+    /// CPU time of the whole process (all threads) during the stage, where the OS tells it.
+    pub cpu: Option<Duration>,
     /// One line on what it did.
     pub detail: String,
 }
@@ -173,17 +164,38 @@ struct Progress {
     multi: MultiProgress,
     total: usize,
     times: Vec<StageTime>,
+    cpu_mark: Option<Duration>,
+}
+
+/// CPU time (user + system, all threads) of this process so far: Linux `/proc/self/stat`
+/// fields 14 and 15, in clock ticks of 10 ms (USER_HZ = 100, fixed by the kernel ABI).
+/// `None` elsewhere. The wall time of a run on a shared machine depends on the other load;
+/// the CPU time does not, so the report gives both.
+pub fn process_cpu_time() -> Option<Duration> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let after = stat.rsplit_once(')')?.1;
+    let f: Vec<&str> = after.split_whitespace().collect();
+    let ticks = f.get(11)?.parse::<u64>().ok()? + f.get(12)?.parse::<u64>().ok()?;
+    Some(Duration::from_millis(ticks * 10))
+}
+
+/// The 1, 5 and 15 minute load averages (Linux `/proc/loadavg`), as text.
+pub fn load_average() -> Option<String> {
+    let s = std::fs::read_to_string("/proc/loadavg").ok()?;
+    let v: Vec<&str> = s.split_whitespace().take(3).collect();
+    (v.len() == 3).then(|| v.join(" "))
 }
 
 impl Progress {
     fn new(total: usize) -> Self {
-        Self { multi: MultiProgress::new(), total, times: Vec::new() }
+        Self { multi: MultiProgress::new(), total, times: Vec::new(), cpu_mark: process_cpu_time() }
     }
 
     fn spinner(&self, k: usize, name: &str) -> ProgressBar {
         let bar = self.multi.add(ProgressBar::new_spinner());
         bar.set_style(
-            ProgressStyle::with_template("{spinner} {msg} {elapsed}").unwrap_or_else(|_| ProgressStyle::default_spinner()),
+            ProgressStyle::with_template("{spinner} {msg} {elapsed}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
         );
         bar.set_message(format!("[{k}/{}] {name}", self.total));
         bar.enable_steady_tick(Duration::from_millis(120));
@@ -192,8 +204,14 @@ impl Progress {
 
     fn done(&mut self, bar: &ProgressBar, k: usize, name: &str, elapsed: Duration, detail: String) {
         bar.finish_and_clear();
-        self.multi.suspend(|| eprintln!("[{k}/{}] {name}: {:.1} s — {detail}", self.total, elapsed.as_secs_f64()));
-        self.times.push(StageTime { name: name.to_owned(), elapsed, detail });
+        let now = process_cpu_time();
+        let cpu = now.zip(self.cpu_mark).map(|(n, m)| n.saturating_sub(m));
+        self.cpu_mark = now;
+        let cpu_text = cpu.map_or_else(String::new, |c| format!(" (CPU {:.1} s)", c.as_secs_f64()));
+        self.multi.suspend(|| {
+            eprintln!("[{k}/{}] {name}: {:.1} s{cpu_text} — {detail}", self.total, elapsed.as_secs_f64());
+        });
+        self.times.push(StageTime { name: name.to_owned(), elapsed, cpu, detail });
     }
 }
 
@@ -232,7 +250,8 @@ fn data_stage(g: &GenerateArgs) -> Result<DataStage> {
         std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
         // Marks the directory as the demo's while it is incomplete, so an interrupted run is
         // regenerated next time rather than refused or reused.
-        std::fs::write(&stamp_path, "incomplete\n").with_context(|| format!("cannot write {}", stamp_path.display()))?;
+        std::fs::write(&stamp_path, "incomplete\n")
+            .with_context(|| format!("cannot write {}", stamp_path.display()))?;
         let mut g = g.clone();
         g.force = true;
         let (_, features) = generate_with(&g, true, |row, adc| {
@@ -243,8 +262,10 @@ fn data_stage(g: &GenerateArgs) -> Result<DataStage> {
         std::fs::write(&stamp_path, &want).with_context(|| format!("cannot write {}", stamp_path.display()))?;
         (features, false)
     };
-    let (train, test): (Vec<TraceFeatures>, Vec<TraceFeatures>) =
-        features.into_iter().filter(|f| f.row.split == "train" || f.row.split == "test").partition(|f| f.row.split == "train");
+    let (train, test): (Vec<TraceFeatures>, Vec<TraceFeatures>) = features
+        .into_iter()
+        .filter(|f| f.row.split == "train" || f.row.split == "test")
+        .partition(|f| f.row.split == "train");
     if train.is_empty() || test.is_empty() {
         bail!("{}: the data set needs both a train and a test split", dir.display());
     }
@@ -386,7 +407,9 @@ pub fn decode_log(log: &Path, items: &[ReplayItem]) -> Result<CanStage> {
                     report,
                 });
             }
-            Err(e) => st.flagged.push(format!("{}: {e}", crate::can_log::format_line(rec.time_us, &rec.iface, &rec.frame))),
+            Err(e) => {
+                st.flagged.push(format!("{}: {e}", crate::can_log::format_line(rec.time_us, &rec.iface, &rec.frame)))
+            }
         }
     }
     Ok(st)
@@ -477,6 +500,8 @@ pub struct RunInfo {
     pub started: String,
     /// Worker threads.
     pub threads: usize,
+    /// Load averages at the start (Linux).
+    pub load: Option<String>,
 }
 
 fn command_output(cmd: &str, args: &[&str]) -> Option<String> {
@@ -503,6 +528,7 @@ fn run_info(a: &DemoArgs) -> RunInfo {
         command: format!("host-sim {}", args.join(" ")),
         started: utc_text(now),
         threads: rayon::current_num_threads(),
+        load: load_average(),
     }
 }
 
@@ -534,6 +560,8 @@ pub struct DemoResults {
     pub stages: Vec<StageTime>,
     /// Wall time up to the report.
     pub total: Duration,
+    /// CPU time of the process up to the report.
+    pub cpu: Option<Duration>,
 }
 
 fn chart_svg(dir: &Path, name: &str, labels: ChartLabels<'_>, series: &[Series<'_>]) -> Result<String> {
@@ -614,21 +642,32 @@ fn section_run(r: &DemoResults) -> Section {
         ("rustc", i.rustc.clone().unwrap_or_else(|| "not available".into())),
         ("started", i.started.clone()),
         ("worker threads", i.threads.to_string()),
+        ("load average at start (1, 5, 15 min)", i.load.clone().unwrap_or_else(|| "not available".into())),
         ("wall time (this run, up to the report)", format!("{:.1} s", r.total.as_secs_f64())),
+        (
+            "CPU time (this run, all threads)",
+            r.cpu.map_or_else(|| "not available".to_owned(), |c| format!("{:.1} s", c.as_secs_f64())),
+        ),
     ] {
         t.row(vec![Cell::text(k), Cell::mono(v)]);
     }
     s.push(Block::Table(t));
-    let mut st = Table::new("Stages (wall time of this run)", &["stage", "wall time", "what it did"]);
+    let mut st = Table::new("Stages of this run", &["stage", "wall time", "CPU time", "what it did"]);
     for x in &r.stages {
-        st.row(vec![Cell::text(&*x.name), Cell::text(format!("{:.1} s", x.elapsed.as_secs_f64())), Cell::text(&*x.detail)]);
+        st.row(vec![
+            Cell::text(&*x.name),
+            Cell::text(format!("{:.1} s", x.elapsed.as_secs_f64())),
+            Cell::text(x.cpu.map_or_else(|| "–".to_owned(), |c| format!("{:.1} s", c.as_secs_f64()))),
+            Cell::text(&*x.detail),
+        ]);
     }
     s.push(Block::Table(st));
     s.push(Block::Note(
         "Every number, table and plot on this page was computed by the run above, except the firmware cost \
          figures (read from the file named in that section) and the paper's reported accuracies (published \
-         figures, SPEC §6), which are labelled where they appear. The training stage and the audit run \
-         concurrently, so their wall times overlap."
+         figures, SPEC §6), which are labelled where they appear. Training and the audit run concurrently \
+         (training ours keeps one core busy). Wall times depend on what else the machine runs; CPU times \
+         (the whole process, all threads) do not."
             .into(),
     ));
     s
@@ -639,12 +678,8 @@ fn score<'a>(r: &'a DemoResults, name: &str) -> Option<&'a Score> {
 }
 
 fn audit_line(a: &AuditCase) -> (String, String) {
-    let truth = a
-        .truth
-        .iter()
-        .map(|(e, v)| format!("{} = {v:.4} {}", e.name(), e.unit()))
-        .collect::<Vec<_>>()
-        .join(" + ");
+    let truth =
+        a.truth.iter().map(|(e, v)| format!("{} = {v:.4} {}", e.name(), e.unit())).collect::<Vec<_>>().join(" + ");
     let truth = if truth.is_empty() { "none".to_owned() } else { truth };
     let named = if a.outcome.cause_effects.is_empty() {
         "none".to_owned()
@@ -688,7 +723,12 @@ fn section_summary(r: &DemoResults) -> Section {
     ]);
     t.row(vec![
         Cell::text("CAN: fault reports decoded from the replay log (core decoder)"),
-        Cell::strong(format!("{} reports, {} status frames, {} flagged", r.can.reports.len(), r.can.status, r.can.flagged.len())),
+        Cell::strong(format!(
+            "{} reports, {} status frames, {} flagged",
+            r.can.reports.len(),
+            r.can.status,
+            r.can.flagged.len()
+        )),
         Cell::text(format!("{} frames in {}", r.can.frames, r.can.log.display())),
     ]);
     let correct_reports = r.can.reports.iter().filter(|d| verdict_class(&d.report) == Some(d.label.as_str())).count();
@@ -757,7 +797,9 @@ fn section_data(r: &DemoResults) -> Section {
         for (split, set) in [("train", &r.data.train), ("test", &r.data.test)] {
             let mine: Vec<&TraceFeatures> = set.iter().filter(|f| f.class == *class).collect();
             let mut row = vec![Cell::text(class.label()), Cell::text(split)];
-            row.extend(locos.iter().map(|l| Cell::text(mine.iter().filter(|f| &f.row.locomotive == l).count().to_string())));
+            row.extend(
+                locos.iter().map(|l| Cell::text(mine.iter().filter(|f| &f.row.locomotive == l).count().to_string())),
+            );
             row.push(Cell::strong(mine.len().to_string()));
             t.row(row);
         }
@@ -882,7 +924,18 @@ fn section_can(r: &DemoResults) -> Section {
     )));
     let mut t = Table::new(
         "Decoded fault reports",
-        &["trace", "true class", "log time", "diagnosis", "confidence", "supply", "leak", "since command", "release", "cab display line"],
+        &[
+            "trace",
+            "true class",
+            "log time",
+            "diagnosis",
+            "confidence",
+            "supply",
+            "leak",
+            "since command",
+            "release",
+            "cab display line",
+        ],
     );
     for d in &c.reports {
         let rep = &d.report;
@@ -893,7 +946,9 @@ fn section_can(r: &DemoResults) -> Section {
             Cell::text(&*d.label),
             Cell::text(format!("{:.2} s", d.time_us as f64 / 1e6)),
             if ok { diag.with_background((214, 245, 214)) } else { diag.with_background((250, 214, 214)) },
-            Cell::text(crate::can_cmd::confidence_pct(&rep.verdict).map_or_else(|| "–".to_owned(), |p| format!("{p:.0} %"))),
+            Cell::text(
+                crate::can_cmd::confidence_pct(&rep.verdict).map_or_else(|| "–".to_owned(), |p| format!("{p:.0} %")),
+            ),
             Cell::text(if rep.supply_mbar == 0 {
                 "–".to_owned()
             } else {
@@ -992,13 +1047,19 @@ fn section_audit(r: &DemoResults) -> Result<Section> {
             if a.gain_ok { ", ≥ 5×" } else { ", below 5×" }
         )),
     ]);
-    t.row(vec![Cell::text("noise σ per trace (estimated)"), Cell::text(format!("{:.4} bar", o.diagnostics.sigma_trace_bar))]);
+    t.row(vec![
+        Cell::text("noise σ per trace (estimated)"),
+        Cell::text(format!("{:.4} bar", o.diagnostics.sigma_trace_bar)),
+    ]);
     t.row(vec![
         Cell::text("Ljung–Box Q(20) of the base residual"),
         Cell::text(format!("{:.1} (white below 31.4)", o.diagnostics.ljung_box_q)),
     ]);
     s.push(Block::Table(t));
-    let mut ph = Table::new("Where the base twin's error sits (by release phase)", &["phase", "samples", "RMS", "bias", "share of SSE"]);
+    let mut ph = Table::new(
+        "Where the base twin's error sits (by release phase)",
+        &["phase", "samples", "RMS", "bias", "share of SSE"],
+    );
     for p in &o.diagnostics.phases {
         ph.row(vec![
             Cell::text(p.phase),
@@ -1009,14 +1070,23 @@ fn section_audit(r: &DemoResults) -> Result<Section> {
         ]);
     }
     s.push(Block::Table(ph));
-    let mut rk = Table::new("Candidate extensions, best first (ΔBIC against the base twin)", &["candidate", "ΔBIC", "RSS ratio", "NMSE", "magnitudes"]);
+    let mut rk = Table::new(
+        "Candidate extensions, best first (ΔBIC against the base twin)",
+        &["candidate", "ΔBIC", "RSS ratio", "NMSE", "magnitudes"],
+    );
     for c in o.ranking.iter().take(10) {
         rk.row(vec![
             Cell::text(&*c.name),
             Cell::text(format!("{:.1}", c.delta_bic)),
             Cell::text(format!("{:.2}", o.base.rss / c.rss)),
             Cell::text(format!("{:.3} %", c.nmse_pct)),
-            Cell::text(c.effects.iter().map(|(e, v, u)| format!("{} = {v:.4} ± {u:.4} {}", e.name(), e.unit())).collect::<Vec<_>>().join(", ")),
+            Cell::text(
+                c.effects
+                    .iter()
+                    .map(|(e, v, u)| format!("{} = {v:.4} ± {u:.4} {}", e.name(), e.unit()))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+            ),
         ]);
     }
     s.push(Block::Table(rk));
@@ -1031,7 +1101,10 @@ fn section_audit(r: &DemoResults) -> Result<Section> {
             caption: "Mean of the measured releases, the fitted base twin and the extended twin.".into(),
         });
     }
-    s.push(Block::Figure { svg: crate::audit_plot::acf_svg(o)?, caption: "Whiteness: residual autocorrelation.".into() });
+    s.push(Block::Figure {
+        svg: crate::audit_plot::acf_svg(o)?,
+        caption: "Whiteness: residual autocorrelation.".into(),
+    });
     Ok(s)
 }
 
@@ -1039,7 +1112,7 @@ fn section_firmware(r: &DemoResults) -> Section {
     let mut s = Section::new("firmware", "Firmware cost on the Cortex-M4F");
     match &r.firmware {
         Some((path, modified, text)) => {
-            s.push(Block::Note(format!(
+            s.push(Block::Callout(format!(
                 "Read from {} (last modified {modified}), written by the firmware benchmark (scripts/firmware-bench.sh). \
                  These figures were NOT computed in this run; they are shown as that file states them.",
                 path.display()
@@ -1104,7 +1177,13 @@ fn firmware_report(path: &Path) -> Option<(PathBuf, String, String)> {
 /// The terminal summary.
 pub fn summary_text(r: &DemoResults, report: &Path) -> String {
     let mut s = String::new();
-    let _ = writeln!(s, "\nhost-sim demo — seed {} — {} training + {} test traces", r.info.seed, r.data.train.len(), r.data.test.len());
+    let _ = writeln!(
+        s,
+        "\nhost-sim demo — seed {} — {} training + {} test traces",
+        r.info.seed,
+        r.data.train.len(),
+        r.data.test.len()
+    );
     let _ = writeln!(s, "{:<16} {:>9} {:>10} {:>8}", "classifier", "accuracy", "correct", "paper");
     for sc in &r.eval.scores {
         let _ = writeln!(
@@ -1116,7 +1195,13 @@ pub fn summary_text(r: &DemoResults, report: &Path) -> String {
             paper_pct(&sc.name).map_or_else(String::new, |p| format!("{p} %"))
         );
     }
-    let _ = writeln!(s, "ours int8 = f64 on {}/{} test traces; correct and stable by 10 s: {:.1} %", r.eval.int8_agree, r.data.test.len(), r.eval.stable10);
+    let _ = writeln!(
+        s,
+        "ours int8 = f64 on {}/{} test traces; correct and stable by 10 s: {:.1} %",
+        r.eval.int8_agree,
+        r.data.test.len(),
+        r.eval.stable10
+    );
     let _ = writeln!(
         s,
         "CAN replay: {} frames, {} fault reports decoded, {} flagged",
@@ -1141,7 +1226,8 @@ pub fn summary_text(r: &DemoResults, report: &Path) -> String {
     }
     let stages: Vec<String> = r.stages.iter().map(|x| format!("{} {:.1} s", x.name, x.elapsed.as_secs_f64())).collect();
     let _ = writeln!(s, "stages: {}", stages.join(", "));
-    let _ = writeln!(s, "total wall time {:.1} s", r.total.as_secs_f64());
+    let cpu = r.cpu.map_or_else(String::new, |c| format!(" (CPU {:.1} s, all threads)", c.as_secs_f64()));
+    let _ = writeln!(s, "total wall time {:.1} s{cpu}", r.total.as_secs_f64());
     let _ = writeln!(s, "report: {}", report.display());
     s
 }
@@ -1149,7 +1235,8 @@ pub fn summary_text(r: &DemoResults, report: &Path) -> String {
 /// `host-sim demo`.
 pub fn run(a: &DemoArgs) -> Result<()> {
     if a.threads > 0 {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(a.threads).build().context("cannot start worker threads")?;
+        let pool =
+            rayon::ThreadPoolBuilder::new().num_threads(a.threads).build().context("cannot start worker threads")?;
         pool.install(|| run_in_pool(a))
     } else {
         run_in_pool(a)
@@ -1176,6 +1263,7 @@ fn run_in_pool(a: &DemoArgs) -> Result<()> {
     p.done(&bar, 1, "fleet data set", t.elapsed(), detail);
 
     // 2. training ‖ audit
+    let t = Instant::now();
     let bar_t = p.spinner(2, "training 4 classifiers + int8 quantization");
     let bar_a = p.spinner(2, "audit of a hidden effect");
     let ((trained, t_train), (audit, t_audit)) = rayon::join(
@@ -1193,18 +1281,18 @@ fn run_in_pool(a: &DemoArgs) -> Result<()> {
         },
     );
     let trained = trained?;
-    let detail = trained
-        .models
-        .iter()
-        .map(|(k, _, l)| format!("{} {} epochs", k.name(), l.epochs))
-        .collect::<Vec<_>>()
-        .join(", ");
-    p.done(&bar_t, 2, "training", t_train, detail);
-    let detail = match &audit {
+    let epochs =
+        trained.models.iter().map(|(k, _, l)| format!("{} {}", k.name(), l.epochs)).collect::<Vec<_>>().join(", ");
+    let cause = match &audit {
         Ok(c) => format!("cause {}", c.outcome.cause),
         Err(e) => format!("FAILED: {e}"),
     };
-    p.done(&bar_a, 2, "audit", t_audit, detail);
+    let detail = format!(
+        "training {:.1} s (epochs: {epochs}) concurrently with the audit {:.1} s ({cause})",
+        t_train.as_secs_f64(),
+        t_audit.as_secs_f64()
+    );
+    p.done(&bar_t, 2, "training ‖ audit", t.elapsed(), detail);
 
     // 3. evaluation
     let t = Instant::now();
@@ -1217,7 +1305,8 @@ fn run_in_pool(a: &DemoArgs) -> Result<()> {
     let t = Instant::now();
     let bar = p.spinner(4, "replay with CAN logging");
     let can = can_stage(&data.dir, &a.out, a.can_per_class)?;
-    let detail = format!("{} frames, {} fault reports decoded, {} flagged", can.frames, can.reports.len(), can.flagged.len());
+    let detail =
+        format!("{} frames, {} fault reports decoded, {} flagged", can.frames, can.reports.len(), can.flagged.len());
     p.done(&bar, 4, "replay + CAN decode", t.elapsed(), detail);
 
     // 5. estimator
@@ -1241,11 +1330,18 @@ fn run_in_pool(a: &DemoArgs) -> Result<()> {
         firmware: firmware_report(&a.firmware_report),
         stages: p.times.clone(),
         total: start.elapsed(),
+        cpu: process_cpu_time(),
     };
     let svg_dir = a.out.join("svg");
     let mut page = build_page(&results, &svg_dir)?;
     results.total = start.elapsed();
-    results.stages.push(StageTime { name: "report".into(), elapsed: t.elapsed(), detail: "page built".into() });
+    results.cpu = process_cpu_time();
+    results.stages.push(StageTime {
+        name: "report".into(),
+        elapsed: t.elapsed(),
+        cpu: None,
+        detail: "page built".into(),
+    });
     // The run section states the final figures (built last, everything else is unchanged).
     page.sections[0] = section_run(&results);
     let html = render(&page);
@@ -1261,6 +1357,7 @@ fn run_in_pool(a: &DemoArgs) -> Result<()> {
     );
     p.done(&bar, 6, "report", t.elapsed(), detail);
     results.total = start.elapsed();
+    results.cpu = process_cpu_time();
     results.stages = p.times.clone();
     print!("{}", summary_text(&results, &index));
     if let Err(e) = &results.audit {

@@ -85,8 +85,10 @@ impl Table {
 pub enum Block {
     /// A paragraph of plain text.
     Para(String),
-    /// A smaller, grey paragraph (provenance, method notes).
+    /// A smaller, grey paragraph (method notes).
     Note(String),
+    /// A boxed, highlighted paragraph (where figures come from when not from this run).
+    Callout(String),
     /// A table.
     Table(Table),
     /// An inline SVG figure (the SVG document as produced by plotters) with a caption.
@@ -168,8 +170,8 @@ body{font-family:system-ui,-apple-system,'Segoe UI',Roboto,sans-serif;margin:0;c
 main{max-width:1180px;margin:0 auto;padding:16px 24px 48px}\
 h1{font-size:1.7em;margin:.4em 0 .1em}h2{border-bottom:2px solid #c9d1da;padding-bottom:.2em;margin-top:1.8em}\
 h3{margin:1.2em 0 .4em}.subtitle{color:#4a5663;margin:0 0 1em}\
-nav{background:#fff;border:1px solid #d6dce3;border-radius:6px;padding:8px 12px;margin:12px 0}\
-nav a{margin-right:14px;color:#1f5fa8;text-decoration:none;white-space:nowrap}\
+nav{display:flex;flex-wrap:wrap;gap:4px 16px;background:#fff;border:1px solid #d6dce3;border-radius:6px;padding:8px 12px;margin:12px 0}\
+nav a{color:#1f5fa8;text-decoration:none;white-space:nowrap}\
 section{background:#fff;border:1px solid #d6dce3;border-radius:6px;padding:4px 18px 14px;margin:18px 0}\
 table{border-collapse:collapse;margin:8px 0 14px;font-size:.92em}\
 caption{text-align:left;font-weight:600;padding:4px 0;color:#2c3a47}\
@@ -177,9 +179,10 @@ th,td{border:1px solid #cfd6de;padding:3px 8px;text-align:left;vertical-align:to
 th{background:#eef2f6}td.num{text-align:right}.mono{font-family:ui-monospace,Consolas,monospace;font-size:.9em;white-space:pre}\
 figure{margin:10px 0 16px}figcaption{color:#4a5663;font-size:.9em;margin-top:2px}\
 figure svg{max-width:100%;height:auto;border:1px solid #e1e6eb}\
-.gallery{display:flex;flex-wrap:wrap;gap:12px}.gallery figure{flex:1 1 460px;margin:4px 0}\
+.gallery{display:flex;flex-wrap:wrap;gap:12px}.gallery figure{flex:0 1 calc(50% - 6px);min-width:420px;margin:4px 0}\
 pre{background:#f3f5f7;border:1px solid #dde3e9;padding:8px;overflow-x:auto;font-size:.85em}\
-.note{color:#56636f;font-size:.9em}";
+.note{color:#56636f;font-size:.9em}\
+.callout{background:#fff8db;border:1px solid #e6d28a;border-radius:4px;padding:8px 12px}";
 
 fn looks_numeric(s: &str) -> bool {
     let t = s.trim().trim_end_matches('%').trim_end_matches(" s").trim();
@@ -265,6 +268,9 @@ pub fn render(page: &Page) -> String {
                 Block::Note(t) => {
                     let _ = writeln!(out, "<p class=\"note\">{}</p>", escape(t));
                 }
+                Block::Callout(t) => {
+                    let _ = writeln!(out, "<p class=\"callout\">{}</p>", escape(t));
+                }
                 Block::Heading(t) => {
                     let _ = writeln!(out, "<h3>{}</h3>", escape(t));
                 }
@@ -301,7 +307,7 @@ fn is_separator(line: &str) -> bool {
     !cells.is_empty() && cells.iter().all(|c| !c.is_empty() && c.chars().all(|ch| matches!(ch, '-' | ':' | ' ')))
 }
 
-/// Reads a Markdown report (headings, paragraphs, pipe tables, fenced code) into blocks.
+/// Reads a Markdown report (headings, paragraphs, list items, pipe tables, fenced code) into blocks.
 /// Inline markup is shown as plain text (backticks and `**` dropped); nothing is interpreted
 /// as HTML.
 pub fn markdown_blocks(md: &str) -> Vec<Block> {
@@ -344,6 +350,10 @@ pub fn markdown_blocks(md: &str) -> Vec<Block> {
             continue;
         } else if t.is_empty() {
             flush(&mut para, &mut out);
+        } else if let Some(item) = t.strip_prefix("- ").or_else(|| t.strip_prefix("* ")) {
+            // A list item: its own paragraph; indented lines continue it.
+            flush(&mut para, &mut out);
+            para.push(format!("• {}", clean(item)));
         } else if line.starts_with("    ") && para.is_empty() {
             out.push(Block::Pre(t.to_owned()));
         } else {
@@ -427,7 +437,8 @@ pub fn check(html: &str, required: &[&str]) -> Result<PageCheck, String> {
         let t = &rest[p..end];
         let body = t.find("<tbody>").map_or("", |b| &t[b..]);
         let rows = count(body, "<tr>");
-        let cells_with_text = body.split("<td").skip(1).filter(|c| c.split_once('>').is_some_and(|x| !x.1.starts_with("</td>"))).count();
+        let cells_with_text =
+            body.split("<td").skip(1).filter(|c| c.split_once('>').is_some_and(|x| !x.1.starts_with("</td>"))).count();
         if rows == 0 || cells_with_text == 0 {
             return Err(format!("table #{} has no filled body rows", found.tables + 1));
         }
@@ -465,7 +476,10 @@ mod tests {
     #[test]
     fn escaping_and_svg_extraction() {
         assert_eq!(escape("<a href=\"x\">&'"), "&lt;a href=&quot;x&quot;&gt;&amp;&#39;");
-        assert_eq!(svg_element("<?xml version=\"1.0\"?>\n<svg a=\"1\"><path/></svg>\n"), Some("<svg a=\"1\"><path/></svg>"));
+        assert_eq!(
+            svg_element("<?xml version=\"1.0\"?>\n<svg a=\"1\"><path/></svg>\n"),
+            Some("<svg a=\"1\"><path/></svg>")
+        );
         assert_eq!(svg_element("no svg"), None);
     }
 
@@ -478,7 +492,8 @@ mod tests {
 
     #[test]
     fn markdown_tables_headings_and_paragraphs() {
-        let md = "# Title\n\nSome `code` and **bold**\ntext.\n\n| a | b |\n|---|---|\n| 1 | `x` |\n| 2 | y |\n\n    cmd --flag\n";
+        let md = "# Title\n\nSome `code` and **bold**\ntext.\n\n| a | b |\n|---|---|\n| 1 | `x` |\n| 2 | y |\n\n    cmd --flag\n\
+                  \n- one\n  more\n- two\n";
         let b = markdown_blocks(md);
         assert_eq!(b[0], Block::Heading("Title".into()));
         assert_eq!(b[1], Block::Para("Some code and bold text.".into()));
@@ -487,5 +502,6 @@ mod tests {
         assert_eq!(t.rows.len(), 2);
         assert_eq!(t.rows[0][1].text, "x");
         assert_eq!(b[3], Block::Pre("cmd --flag".into()));
+        assert_eq!(b[4..], [Block::Para("• one more".into()), Block::Para("• two".into())]);
     }
 }
