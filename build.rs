@@ -54,13 +54,24 @@ fn main() {
     }
     writeln!(s, "];").unwrap();
 
+    // exp(-u^2) in Q16 on the grid; the table stops at its first zero (every later entry is 0
+    // too, and the lookup reads a segment past the end as 0: the same values), and is u16 with
+    // entry 0 (exactly 65536) stored as 65535 (the lookup uses 1 << 16 there).
+    let exp_q16 = |i: u32| {
+        let u = f64::from(i * STRIBECK_STEP_Q16) / 65_536.0;
+        ((-u * u).exp() * 65_536.0).round() as u32
+    };
+    let stribeck_len = (0..STRIBECK_LEN).find(|&i| exp_q16(i) == 0).map_or(STRIBECK_LEN, |z| z + 1);
     writeln!(s, "/// log2 of the grid step of [`STRIBECK_EXP_Q16`] in Q16 units of |v|/vs.").unwrap();
     writeln!(s, "pub const STRIBECK_STEP_SHIFT: u32 = {};", STRIBECK_STEP_Q16.trailing_zeros()).unwrap();
-    writeln!(s, "/// exp(-u^2) in Q16 on u = i/64, i = 0..{STRIBECK_LEN}.").unwrap();
-    writeln!(s, "pub static STRIBECK_EXP_Q16: [u32; {STRIBECK_LEN}] = [").unwrap();
-    for i in 0..STRIBECK_LEN {
-        let u = f64::from(i * STRIBECK_STEP_Q16) / 65_536.0;
-        let v = ((-u * u).exp() * 65_536.0).round() as u32;
+    writeln!(
+        s,
+        "/// exp(-u^2) in Q16 on u = i/64, i = 0..{stribeck_len} (up to its first zero; entry 0 is 65536, stored as 65535)."
+    )
+    .unwrap();
+    writeln!(s, "pub static STRIBECK_EXP_Q16: [u16; {stribeck_len}] = [").unwrap();
+    for i in 0..stribeck_len {
+        let v = exp_q16(i).min(65_535);
         write!(s, "{v},").unwrap();
         if i % 16 == 15 {
             s.push('\n');

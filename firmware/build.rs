@@ -78,6 +78,9 @@ fn main() {
 
     // cortex-m-rt's link.x INCLUDEs memory.x from the linker search path.
     println!("cargo:rustc-link-search={}", root.display());
+    // device.x (cortex-m-rt `device` feature): the interrupt vectors are firmware/src/vectors.rs.
+    println!("cargo:rustc-link-search={}", manifest.display());
+    println!("cargo:rerun-if-changed={}", manifest.join("device.x").display());
     println!("cargo:rerun-if-changed={}", root.join("memory.x").display());
     println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-env-changed=PBM_FW_TRACE");

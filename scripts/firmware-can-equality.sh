@@ -55,7 +55,10 @@ declare -A seen_logs=()
 for t in "${TRACES[@]}"; do
     n=$((n + 1))
     abs=$(cd "$(dirname "$t")" && pwd)/$(basename "$t")
-    name=$(basename "$t" .csv)
+    case "$t" in
+        "$WORK"/*) name="(made here) $(basename "$t")" ;;
+        *) name=${t#tests/data/} ;;
+    esac
     host_log="$WORK/$n-host.log"
     fw_log="$WORK/$n-fw.log"
     fw_err="$WORK/$n-fw.err"

@@ -58,7 +58,9 @@ frames=$(wc -l <"$CANLOG")
 if grep -vEq '^\([0-9]{10}\.[0-9]{6}\) can0 ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]{2}){0,8}$' "$CANLOG"; then
     die "monitor wrote a line that is not a candump log line: $(grep -vEm1 '^\(' "$CANLOG")"
 fi
-echo "== firmware: monitor passed (exit 0, $frames candump lines)"
+# The diagnosis runs on the target: the 60 s window closes it and the fault report goes out.
+grep -q ' can0 18FF5080#' "$CANLOG" || die "monitor sent no fault report frame (18FF5080)"
+echo "== firmware: monitor passed (exit 0, $frames candump lines, fault report sent)"
 
 # Leave the normal build as the current artefact.
 cargo build --quiet --manifest-path firmware/Cargo.toml --target "$TARGET" --release --bins

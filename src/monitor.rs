@@ -50,14 +50,31 @@ impl Monitor {
         // so this cannot fail; should it ever, report it as the parameter it depends on most.
         let estimator =
             ReleaseEstimator::new(params, EstimatorConfig::default()).map_err(|_| ParamError::DischargeCoeff)?;
-        Ok(Self {
+        Ok(Self::from_parts(twin, estimator))
+    }
+
+    /// The monitor of the nominal brake, from the precomputed nominal constants
+    /// ([`Twin::nominal`], [`ReleaseEstimator::nominal`]): equal to
+    /// `Monitor::new(&TwinParams::nominal())` without its `f64` set-up.
+    // Inlined: the ~2.4 KiB result is built in place, not copied through the stack.
+    #[inline(always)]
+    pub fn nominal() -> Result<Self, ParamError> {
+        let estimator =
+            ReleaseEstimator::nominal(EstimatorConfig::default()).map_err(|_| ParamError::DischargeCoeff)?;
+        Ok(Self::from_parts(Twin::nominal(), estimator))
+    }
+
+    // Inlined: the ~2.4 KiB result is built in place, not copied through the stack.
+    #[inline(always)]
+    fn from_parts(twin: Twin, estimator: ReleaseEstimator) -> Self {
+        Self {
             twin,
             valve_was_open: false,
             samples_since_release: 0,
             last_measured: Ok(PressureQ24::ATMOSPHERE),
             estimator,
             features: crate::features::ReleaseFeatures::new(),
-        })
+        }
     }
 
     /// Processes one 100 Hz sample. `valve_open` is the release command. A rising edge of the

@@ -153,9 +153,58 @@ impl ExtCoeffs {
 const LAMINAR_SLOPE: f64 = 94.0;
 
 impl TwinCoeffs {
-    /// Derives the integer coefficients; fails if a parameter is out of the supported range.
+    /// The coefficients of [`TwinParams::nominal`], precomputed so that a build that only runs
+    /// the nominal twin (the firmware) carries no `f64` parameter set-up (soft-float and `libm`
+    /// on the Cortex-M4F). A test checks that `TwinCoeffs::new(&TwinParams::nominal())` equals
+    /// it, so the two cannot drift apart.
+    pub const NOMINAL: Self = Self {
+        supply_q24: 145_961_779,
+        c_in_q32: 781_633,
+        c_leak_q32: 0,
+        area_per_v0_q16: 686_291,
+        kappa_area_per_v0_q16: 960_808,
+        area_n_per_bar_q8: 804_248,
+        preload_q12: 51_471_854,
+        spring_q4: 2_640_826,
+        sigma0_q4: 1_600_000,
+        sigma1_q0: 2000,
+        coulomb_q12: 614_400,
+        stribeck_span_q12: 614_400,
+        inv_vs_q8: 25_600,
+        accel_q24: 6_871_948,
+        damping_q24: 11_983_726,
+        step_q24: 8_589_935,
+        stroke_q32: 257_698_038,
+        held_steps: 1,
+        ext: ExtCoeffs {
+            active: false,
+            delay_q16: 0,
+            valve_lag: false,
+            lag_keep_q30: 0,
+            lag_gap_avg_q30: 0,
+            heat_rate_q30: 0,
+            sqrt_theta_s_q24: 0,
+            inv_sqrt_theta_s_q24: 0,
+            sensor_lag: false,
+            sensor_keep_q30: 0,
+            sensor_ramp_q30: 0,
+            sensor_offset_q24: 0,
+            sensor_gain_q24: 0,
+            droop_q24: 0,
+            droop_ref_q40: 0,
+            spring_quad_q4: 0,
+            laminar_q40: 0,
+        },
+    };
+
+    /// Derives the integer coefficients; fails if a parameter is out of the supported range, or
+    /// uses an optional mechanism in a build without the `extensions` feature (the firmware).
     pub fn new(p: &TwinParams) -> Result<Self, ParamError> {
         p.validate()?;
+        if !cfg!(feature = "extensions") && !p.ext.is_none() {
+            // Built without the optional mechanisms (the firmware): the twin could not run them.
+            return Err(ParamError::Extension);
+        }
         let h = SUBSTEP_S;
         let sqrt_t = libm::sqrt(TEMPERATURE_K);
         let orifice_gain = |d: Meters| {
@@ -244,6 +293,11 @@ impl TwinCoeffs {
     pub fn supply(&self) -> PressureQ24 {
         PressureQ24(self.supply_q24)
     }
+
+    /// True when any optional mechanism of [`Extensions`] is on (the twin takes the extended path).
+    pub fn ext_active(&self) -> bool {
+        self.ext.active
+    }
 }
 
 /// State of the twin: chamber pressure, piston travel and velocity, LuGre bristle deflection.
@@ -331,6 +385,11 @@ impl Twin {
         Self { coeffs, state: TwinState::APPLIED, ext: ExtState::APPLIED }
     }
 
+    /// The twin of the nominal brake from [`TwinCoeffs::NOMINAL`] (no `f64` set-up).
+    pub const fn nominal() -> Self {
+        Self::from_coeffs(TwinCoeffs::NOMINAL)
+    }
+
     /// Back to the applied state (chamber vented), keeping the parameters.
     pub fn reset(&mut self) {
         self.state = TwinState::APPLIED;
@@ -355,7 +414,8 @@ impl Twin {
     /// Advances one sample (10 ms). `valve_open`: the driver's valve connects the chamber to
     /// the supply (release requested); when closed the chamber vents through the same orifice.
     pub fn update(&mut self, valve_open: bool) -> TwinSample {
-        if self.coeffs.ext.active {
+        // Without the `extensions` feature (the firmware) the extended path is compiled out.
+        if cfg!(feature = "extensions") && self.coeffs.ext.active {
             return self.update_extended(valve_open);
         }
         let k = &self.coeffs;
@@ -671,7 +731,8 @@ fn stribeck_exp_q16(u_q16: i64) -> i64 {
         return 0;
     }
     let frac = u_q16 & ((1 << lut::STRIBECK_STEP_SHIFT) - 1);
-    let a = i64::from(lut::STRIBECK_EXP_Q16[idx]);
+    // The u16 table holds exp(0) = 1.0 (65536 in Q16) as 65535 (build.rs).
+    let a = if idx == 0 { 1 << 16 } else { i64::from(lut::STRIBECK_EXP_Q16[idx]) };
     let b = i64::from(lut::STRIBECK_EXP_Q16[idx + 1]);
     a + ((b - a) * frac >> lut::STRIBECK_STEP_SHIFT)
 }
@@ -748,6 +809,23 @@ mod tests {
         // Out-of-range pressures lose precision, never overflow.
         assert!(orifice_dp_q40(i32::MAX, 0, c) > 0);
         assert!(orifice_dp_q40(i32::MIN, i32::MAX, c) < 0);
+    }
+
+    #[test]
+    fn precomputed_nominal_coefficients_equal_the_nominal_parameters() {
+        assert_eq!(TwinCoeffs::new(&TwinParams::nominal()), Ok(TwinCoeffs::NOMINAL));
+        assert_eq!(TwinCoeffs::NOMINAL.ext, ExtCoeffs::default());
+        assert_eq!(Twin::new(&TwinParams::nominal()), Ok(Twin::nominal()));
+    }
+
+    /// Only in builds without the `extensions` feature: `cargo test --lib --no-default-features`.
+    #[cfg(not(feature = "extensions"))]
+    #[test]
+    fn without_the_extensions_feature_extended_parameters_are_rejected() {
+        let mut p = TwinParams::nominal();
+        p.ext.sensor_offset_bar = 0.1;
+        assert_eq!(Twin::new(&p).err(), Some(ParamError::Extension));
+        assert_eq!(Twin::new(&TwinParams::nominal()), Ok(Twin::nominal()));
     }
 
     #[test]

@@ -56,3 +56,24 @@ mod trace_data {
 }
 
 pub use trace_data::{ADC_TRACE, ADC_TRACE_NAME};
+
+/// The driver's release command (the valve-command input), read once per sample beside the ADC.
+///
+/// On a board this is a GPIO input (`embedded_hal::digital::InputPin::is_high` on the line
+/// from the driver's brake valve switch). On QEMU, [`TraceValve`] holds it on for the whole
+/// recorded trace: a recorded trace is one release from the command (SPEC §5), which is also how
+/// `host-sim replay` reads it.
+pub trait ValveCommand {
+    /// `true` while a release is requested.
+    fn release_requested(&mut self) -> bool;
+}
+
+/// The valve command of a recorded release: on from the first sample.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct TraceValve;
+
+impl ValveCommand for TraceValve {
+    fn release_requested(&mut self) -> bool {
+        true
+    }
+}

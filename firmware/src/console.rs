@@ -135,11 +135,11 @@ impl Text {
         // Largest power of ten not above v (1 for 0), then one digit per power.
         let mut p = 1u32;
         while p <= v / 10 {
-            p *= 10;
+            p = p.saturating_mul(10);
         }
         loop {
-            self.byte(b'0' + (v / p % 10) as u8);
-            if p == 1 {
+            self.byte(b'0' + (v.checked_div(p).unwrap_or(0) % 10) as u8);
+            if p <= 1 {
                 return self;
             }
             p /= 10;
@@ -162,8 +162,11 @@ impl Text {
         if self.len == LINE_CAPACITY {
             self.len -= 1;
         }
-        self.buf[self.len] = b'\n';
-        (self.buf, self.len + 1)
+        if let Some(slot) = self.buf.get_mut(self.len) {
+            *slot = b'\n';
+            self.len += 1;
+        }
+        (self.buf, self.len)
     }
 
     /// Writes the line and a newline to the host's standard output (one semihosting call).

@@ -15,6 +15,7 @@
 //! - [`candump`]: an `embedded_can::blocking::Can` that writes candump log lines (the core's
 //!   `pbm::pipeline::candump` formatter).
 //! - [`stack`]: peak stack by painting.
+//! - [`vectors`]: the 32 device interrupt vectors of the MPS2 AN386.
 //!
 //! Binaries: `twin-check` (the twin in QEMU against the host's golden values), `monitor` (the
 //! monitor as embassy tasks: ADC, monitor, CAN, watchdog) and `bench` (cost figures).
@@ -28,3 +29,4 @@ pub mod executor;
 pub mod golden;
 pub mod stack;
 pub mod time_driver;
+pub mod vectors;

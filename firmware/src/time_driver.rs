@@ -18,7 +18,6 @@ use cortex_m::peripheral::{SCB, SYST};
 use cortex_m_rt::exception;
 use critical_section::{CriticalSection, Mutex};
 use embassy_time_driver::Driver;
-use embassy_time_queue_utils::queue_generic::ConstGenericQueue;
 
 /// Core clock feeding SysTick (QEMU mps2-an386: 25 MHz).
 pub const CORE_CLOCK_HZ: u32 = 25_000_000;
@@ -29,21 +28,74 @@ const COUNTS_PER_TICK: u32 = CORE_CLOCK_HZ / embassy_time_driver::TICK_HZ as u32
 /// Embassy ticks per millisecond.
 const TICKS_PER_MS: u64 = embassy_time_driver::TICK_HZ / 1000;
 /// Timers the queue holds at once: one per task waiting on time (ADC ticker, CAN status
-/// period, watchdog) plus margin. A full queue makes embassy-time panic, so size it generously.
+/// period, watchdog) plus margin. Should it ever be full, the latest-pushed timer is woken early
+/// to make room (as embassy's generic queue does): a task woken early re-checks its time.
 const TIMER_QUEUE_LEN: usize = 8;
+
+/// The timer queue: one deadline per waiting task, in fixed slots. (embassy-time-queue-utils'
+/// generic queue does the same on a `heapless::Vec`, whose `swap_remove` pulls a 1.5 KiB
+/// `memmove` into the image; fixed slots move nothing.)
+struct TimerQueue {
+    slots: [Option<(u64, Waker)>; TIMER_QUEUE_LEN],
+}
+
+impl TimerQueue {
+    const fn new() -> Self {
+        Self { slots: [const { None }; TIMER_QUEUE_LEN] }
+    }
+
+    /// Registers `waker` for `at` (a task already queued keeps the earlier deadline). True when
+    /// the queue changed so that the next alarm may be earlier (the caller re-arms).
+    fn schedule_wake(&mut self, at: u64, waker: &Waker) -> bool {
+        for (deadline, queued) in self.slots.iter_mut().flatten() {
+            if queued.will_wake(waker) {
+                if *deadline > at {
+                    *deadline = at;
+                    return true;
+                }
+                return false;
+            }
+        }
+        let free = self.slots.iter().position(Option::is_none).unwrap_or(TIMER_QUEUE_LEN - 1);
+        if let Some(slot) = self.slots.get_mut(free) {
+            if let Some((_, early)) = slot.replace((at, waker.clone())) {
+                early.wake();
+            }
+        }
+        true
+    }
+
+    /// Wakes every task whose deadline is at or before `now`; the earliest deadline left
+    /// (`u64::MAX` when none).
+    fn next_expiration(&mut self, now: u64) -> u64 {
+        let mut next = u64::MAX;
+        for slot in self.slots.iter_mut() {
+            match slot {
+                Some((at, _)) if *at <= now => {
+                    if let Some((_, waker)) = slot.take() {
+                        waker.wake();
+                    }
+                }
+                Some((at, _)) => next = next.min(*at),
+                None => {}
+            }
+        }
+        next
+    }
+}
 
 struct SysTickDriver {
     /// Milliseconds since [`init`].
     millis: Mutex<Cell<u64>>,
     /// Earliest deadline in the queue (ticks), `u64::MAX` when empty.
     next_alarm: Mutex<Cell<u64>>,
-    queue: Mutex<RefCell<ConstGenericQueue<TIMER_QUEUE_LEN>>>,
+    queue: Mutex<RefCell<TimerQueue>>,
 }
 
 embassy_time_driver::time_driver_impl!(static DRIVER: SysTickDriver = SysTickDriver {
     millis: Mutex::new(Cell::new(0)),
     next_alarm: Mutex::new(Cell::new(u64::MAX)),
-    queue: Mutex::new(RefCell::new(ConstGenericQueue::new())),
+    queue: Mutex::new(RefCell::new(TimerQueue::new())),
 });
 
 impl SysTickDriver {

@@ -292,14 +292,14 @@ pub fn read_mlp(path: &Path) -> Result<(Mlp, Vec<FaultClass>)> {
 pub struct QuantParams {
     /// Classes of the outputs.
     pub classes: Vec<FaultClass>,
-    /// Input map multiplier.
-    pub input_scale: Vec<f64>,
+    /// Input map multiplier (`f32`: the core's input map is `f32` arithmetic).
+    pub input_scale: Vec<f32>,
     /// Input map offset.
-    pub input_offset: Vec<f64>,
+    pub input_offset: Vec<f32>,
     /// Smallest mapped input seen in calibration.
-    pub input_low: Vec<f64>,
+    pub input_low: Vec<f32>,
     /// Largest mapped input seen in calibration.
-    pub input_high: Vec<f64>,
+    pub input_high: Vec<f32>,
     /// Layers: (n_in, n_out, weights, bias, multiplier, shift, relu).
     pub layers: Vec<QuantLayerParams>,
     /// Softmax table.
@@ -382,8 +382,9 @@ pub fn quantize(net: &Mlp, classes: &[FaultClass], calib: &[Vec<f64>]) -> Result
         let m = zs.iter().map(|z| z[j].abs()).fold(0.0, f64::max).max(1e-3);
         *s = 127.0 / m;
     }
-    let input_scale: Vec<f64> = (0..n_in).map(|j| in_scale_q[j] / net.in_std[j]).collect();
-    let input_offset: Vec<f64> = (0..n_in).map(|j| -net.in_mean[j] * in_scale_q[j] / net.in_std[j]).collect();
+    // Computed in f64, stored as the nearest f32 (the core maps inputs in f32).
+    let input_scale: Vec<f32> = (0..n_in).map(|j| (in_scale_q[j] / net.in_std[j]) as f32).collect();
+    let input_offset: Vec<f32> = (0..n_in).map(|j| (-net.in_mean[j] * in_scale_q[j] / net.in_std[j]) as f32).collect();
     // Float activations per layer for calibration of the output scales.
     let mut acts: Vec<Vec<f64>> = zs.clone();
     let mut layers = Vec::new();
@@ -442,15 +443,22 @@ pub fn quantize(net: &Mlp, classes: &[FaultClass], calib: &[Vec<f64>]) -> Result
     for (d, e) in exp_table.iter_mut().enumerate() {
         *e = (65535.0 * (-(d as f64) / logit_scale).exp()).round() as u16;
     }
-    let mapped = |j: usize, x: &[f64]| (x[j] * input_scale[j] + input_offset[j]).round();
-    let input_low: Vec<f64> =
-        (0..n_in).map(|j| calib.iter().map(|x| mapped(j, x)).fold(f64::INFINITY, f64::min)).collect();
-    let input_high: Vec<f64> =
-        (0..n_in).map(|j| calib.iter().map(|x| mapped(j, x)).fold(f64::NEG_INFINITY, f64::max)).collect();
+    // The core's input map, in f32 (the features are f32; wider rows are narrowed as the core does).
+    let mapped = |j: usize, x: &[f64]| (x[j] as f32 * input_scale[j] + input_offset[j]).round();
+    let input_low: Vec<f32> =
+        (0..n_in).map(|j| calib.iter().map(|x| mapped(j, x)).fold(f32::INFINITY, f32::min)).collect();
+    let input_high: Vec<f32> =
+        (0..n_in).map(|j| calib.iter().map(|x| mapped(j, x)).fold(f32::NEG_INFINITY, f32::max)).collect();
     let q =
         QuantParams { classes: classes.to_vec(), input_scale, input_offset, input_low, input_high, layers, exp_table };
     q.with_model(|m| m.validate()).map_err(|e| anyhow::anyhow!("quantized model invalid: {e:?}"))?;
     Ok(q)
+}
+
+/// The softmax table without its zero tail (at least one entry).
+pub fn exp_table_prefix(table: &[u16; 256]) -> &[u16] {
+    let len = table.iter().rposition(|&e| e != 0).map_or(1, |i| i + 1);
+    &table[..len]
 }
 
 /// Writes a quantized model as text (read back by [`read_quant`]).
@@ -495,10 +503,10 @@ pub fn read_quant(path: &Path) -> Result<QuantParams> {
     }
     let classes = field("classes")?.iter().map(|s| FaultClass::from_label(s)).collect::<Option<Vec<_>>>();
     let classes = classes.ok_or_else(|| bad("classes"))?;
-    let input_scale: Vec<f64> = parse(&field("input_scale")?).ok_or_else(|| bad("input_scale"))?;
-    let input_offset: Vec<f64> = parse(&field("input_offset")?).ok_or_else(|| bad("input_offset"))?;
-    let input_low: Vec<f64> = parse(&field("input_low")?).ok_or_else(|| bad("input_low"))?;
-    let input_high: Vec<f64> = parse(&field("input_high")?).ok_or_else(|| bad("input_high"))?;
+    let input_scale: Vec<f32> = parse(&field("input_scale")?).ok_or_else(|| bad("input_scale"))?;
+    let input_offset: Vec<f32> = parse(&field("input_offset")?).ok_or_else(|| bad("input_offset"))?;
+    let input_low: Vec<f32> = parse(&field("input_low")?).ok_or_else(|| bad("input_low"))?;
+    let input_high: Vec<f32> = parse(&field("input_high")?).ok_or_else(|| bad("input_high"))?;
     let table: Vec<u16> = parse(&field("exp_table")?).ok_or_else(|| bad("exp_table"))?;
     let exp_table: [u16; 256] = table.try_into().map_err(|_| bad("exp_table"))?;
     let mut layers = Vec::new();
@@ -535,13 +543,16 @@ pub fn rust_source(q: &QuantParams, provenance: &str) -> String {
     let _ = writeln!(s);
     let classes = list(q.classes.iter().map(|c| format!("FaultClass::{c:?}")).collect());
     let _ = writeln!(s, "static CLASSES: [FaultClass; {}] = [{classes}];", q.classes.len());
-    let f = |v: &[f64]| list(v.iter().map(|x| format!("{x:?}")).collect());
+    let f = |v: &[f32]| list(v.iter().map(|x| format!("{x:?}")).collect());
     let n = q.input_scale.len();
-    let _ = writeln!(s, "static INPUT_SCALE: [f64; {n}] = [{}];", f(&q.input_scale));
-    let _ = writeln!(s, "static INPUT_OFFSET: [f64; {n}] = [{}];", f(&q.input_offset));
-    let _ = writeln!(s, "static INPUT_LOW: [f64; {n}] = [{}];", f(&q.input_low));
-    let _ = writeln!(s, "static INPUT_HIGH: [f64; {n}] = [{}];", f(&q.input_high));
-    let _ = writeln!(s, "static EXP_TABLE: [u16; 256] = [{}];", list(q.exp_table.iter().map(u16::to_string).collect()));
+    let _ = writeln!(s, "static INPUT_SCALE: [f32; {n}] = [{}];", f(&q.input_scale));
+    let _ = writeln!(s, "static INPUT_OFFSET: [f32; {n}] = [{}];", f(&q.input_offset));
+    let _ = writeln!(s, "static INPUT_LOW: [f32; {n}] = [{}];", f(&q.input_low));
+    let _ = writeln!(s, "static INPUT_HIGH: [f32; {n}] = [{}];", f(&q.input_high));
+    // The table's zero tail is left out (the core reads a gap past its end as 0).
+    let exp = exp_table_prefix(&q.exp_table);
+    let _ =
+        writeln!(s, "static EXP_TABLE: [u16; {}] = [{}];", exp.len(), list(exp.iter().map(u16::to_string).collect()));
     for (i, l) in q.layers.iter().enumerate() {
         let _ = writeln!(
             s,

@@ -3,11 +3,12 @@
 //!
 //! # Numbers
 //!
-//! - **Input**: each feature `x` (f64, from [`crate::features`]) becomes
-//!   `q = round(x · scale + offset)`; `scale`/`offset` fold the training standardisation and a
-//!   per-feature calibration so that the training set's extreme maps to ±127. That one affine
-//!   map is the only floating-point step (correctly rounded IEEE `×`, `+`, `round`: the same bits
-//!   on x86 and thumbv7em). A value more than [`PLAUSIBLE_MARGIN`] of the training range outside
+//! - **Input**: each feature `x` (f32, from [`crate::features`]) becomes
+//!   `q = round(x · scale + offset)` in `f32`; `scale`/`offset` fold the training standardisation
+//!   and a per-feature calibration so that the training set's extreme maps to ±127. That one
+//!   affine map is the only floating-point step (correctly rounded IEEE `f32` `×`, `+` and
+//!   `roundf`, never contracted to a fused multiply-add: the same bits on x86 and on the
+//!   Cortex-M4F's FPU, with no `f64` soft-float in the firmware). A value more than [`PLAUSIBLE_MARGIN`] of the training range outside
 //!   that range (per feature, calibrated on the training set) is unlike anything seen in training:
 //!   [`NoDiagnosis::Implausible`]. Otherwise `q` saturates to ±127.
 //! - **Layers**: int8 weights (per-output-channel scales for hidden layers, one scale for the
@@ -33,9 +34,9 @@ pub const MAX_WIDTH: usize = 64;
 /// Most classes a model may have.
 pub const MAX_CLASSES: usize = 8;
 /// A feature further outside its training range than this fraction of the range is implausible.
-pub const PLAUSIBLE_MARGIN: f64 = 0.25;
+pub const PLAUSIBLE_MARGIN: f32 = 0.25;
 /// Shortest release (s) on which a verdict is given.
-pub const MIN_RELEASE_S: f64 = 1.0;
+pub const MIN_RELEASE_S: f32 = 1.0;
 /// Largest share of sensor-fault samples (per mille) tolerated in a release.
 pub const MAX_FAULTY_PERMILLE: u32 = 10;
 
@@ -64,17 +65,18 @@ pub struct QuantModel<'a> {
     /// Class of each output.
     pub classes: &'a [FaultClass],
     /// Per-input multiplier of the input map.
-    pub input_scale: &'a [f64],
+    pub input_scale: &'a [f32],
     /// Per-input offset of the input map.
-    pub input_offset: &'a [f64],
+    pub input_offset: &'a [f32],
     /// Per-input smallest mapped value `x · scale + offset` seen in training.
-    pub input_low: &'a [f64],
+    pub input_low: &'a [f32],
     /// Per-input largest mapped value seen in training.
-    pub input_high: &'a [f64],
+    pub input_high: &'a [f32],
     /// Layers, first to last.
     pub layers: &'a [QuantLayer<'a>],
-    /// `round(65535 · exp(−d / s_logit))` for a logit gap of `d` int8 steps.
-    pub exp_table: &'a [u16; 256],
+    /// `round(65535 · exp(−d / s_logit))` for a logit gap of `d` int8 steps; a gap past the
+    /// end of the table reads 0 (the exported table leaves out its zero tail).
+    pub exp_table: &'a [u16],
 }
 
 /// Why a model or its inputs cannot be used.
@@ -143,13 +145,26 @@ impl QuantModel<'_> {
         self.input_scale.len()
     }
 
-    /// Maps features to int8 inputs; rejects non-finite or implausible values.
+    /// Maps features to int8 inputs; rejects non-finite or implausible values. The features are
+    /// `f32` ([`crate::features`]); wider inputs (host tools) are narrowed to `f32` first.
     pub fn quantize_input(&self, x: &[f64], out: &mut [i8]) -> Result<(), ModelError> {
+        if x.len() > MAX_WIDTH {
+            return Err(ModelError::Shape);
+        }
+        let mut narrow = [0.0f32; MAX_WIDTH];
+        for (d, &v) in narrow.iter_mut().zip(x) {
+            *d = v as f32;
+        }
+        self.quantize_input_f32(&narrow[..x.len()], out)
+    }
+
+    /// Maps `f32` features to int8 inputs; rejects non-finite or implausible values.
+    pub fn quantize_input_f32(&self, x: &[f32], out: &mut [i8]) -> Result<(), ModelError> {
         if x.len() != self.n_inputs() || out.len() != self.n_inputs() {
             return Err(ModelError::Shape);
         }
         for (i, (&v, o)) in x.iter().zip(out.iter_mut()).enumerate() {
-            let q = libm::round(v * self.input_scale[i] + self.input_offset[i]);
+            let q = libm::roundf(v * self.input_scale[i] + self.input_offset[i]);
             let (lo, hi) = (self.input_low[i], self.input_high[i]);
             let margin = PLAUSIBLE_MARGIN * (hi - lo);
             if !(q >= lo - margin && q <= hi + margin) {
@@ -196,17 +211,25 @@ impl QuantModel<'_> {
         let mut logits = [0i8; MAX_CLASSES];
         logits[..n].copy_from_slice(&a[..n]);
         let top = logits[..n].iter().copied().max().unwrap_or(0);
-        let sum: u32 =
-            logits[..n].iter().map(|&l| u32::from(self.exp_table[(i32::from(top) - i32::from(l)) as usize])).sum();
+        let exp = |l: i8| self.exp_table.get((i32::from(top) - i32::from(l)) as usize).copied().unwrap_or(0);
+        let sum: u32 = logits[..n].iter().map(|&l| u32::from(exp(l))).sum();
         let confidence = (255 * 65_535u32).checked_div(sum).map_or(0, |c| c.min(255) as u8);
         Ok(Inference { index, class: self.classes[index], logits, n_classes: n, confidence })
     }
 
-    /// Quantizes `x` and runs the network.
+    /// Quantizes `x` (narrowed to `f32`, see [`Self::quantize_input`]) and runs the network.
     pub fn classify(&self, x: &[f64]) -> Result<Inference, ModelError> {
         let mut q = [0i8; MAX_WIDTH];
         let n = self.n_inputs().min(MAX_WIDTH);
         self.quantize_input(x, &mut q[..n])?;
+        self.infer(&q[..n])
+    }
+
+    /// Quantizes the `f32` features `x` and runs the network.
+    pub fn classify_f32(&self, x: &[f32]) -> Result<Inference, ModelError> {
+        let mut q = [0i8; MAX_WIDTH];
+        let n = self.n_inputs().min(MAX_WIDTH);
+        self.quantize_input_f32(x, &mut q[..n])?;
         self.infer(&q[..n])
     }
 }
@@ -234,14 +257,13 @@ pub fn diagnose_with(model: &QuantModel<'_>, features: &ReleaseFeatures) -> Verd
         // The latest sample is valid but too much of the release was not observed.
         return Verdict::CannotDiagnose(NoDiagnosis::SensorFault(fault));
     }
-    if features.t_now() < MIN_RELEASE_S as f32 {
+    if features.t_now() < MIN_RELEASE_S {
         return Verdict::CannotDiagnose(NoDiagnosis::TooShort);
     }
     if model.n_inputs() != N_OURS {
         return Verdict::CannotDiagnose(NoDiagnosis::Implausible);
     }
-    // The features are f32; the input map widens them exactly.
-    match model.classify(&features.ours().map(f64::from)) {
+    match model.classify_f32(&features.ours()) {
         Ok(inf) => Verdict::Class { class: inf.class, confidence: inf.confidence },
         Err(_) => Verdict::CannotDiagnose(NoDiagnosis::Implausible),
     }
@@ -256,10 +278,10 @@ mod tests {
     use crate::TwinParams;
 
     static CLASSES: [FaultClass; 2] = [FaultClass::Normal, FaultClass::AirLeak];
-    static SCALE: [f64; 2] = [10.0, 10.0];
-    static OFFSET: [f64; 2] = [0.0, -5.0];
-    static LOW: [f64; 2] = [-100.0, -100.0];
-    static HIGH: [f64; 2] = [100.0, 100.0];
+    static SCALE: [f32; 2] = [10.0, 10.0];
+    static OFFSET: [f32; 2] = [0.0, -5.0];
+    static LOW: [f32; 2] = [-100.0, -100.0];
+    static HIGH: [f32; 2] = [100.0, 100.0];
     // Hidden: h0 = relu(x0 - x1), h1 = relu(x1 - x0); output: logits (h0, h1).
     static W0: [i8; 4] = [64, -64, -64, 64];
     static W1: [i8; 4] = [100, 0, 0, 100];

@@ -78,6 +78,27 @@
 //! 10 samples, so per-sample cost is one 64-bit add. Determinism: only correctly rounded IEEE
 //! `+ − × ÷`, `libm::sqrtf` and integer tables are used (no FMA contraction in Rust), so the host
 //! and the target produce identical bits and identical CAN frames.
+//!
+//! # Per-sample cost: the window updates are spread
+//!
+//! A block regression is learnt by up to [`FILL_WINDOWS`] RLS (one per window whose cutoff lies
+//! above its pressure), the end of the fill flushes up to [`FILL_DELAY_BLOCKS`] delayed
+//! regressions at once, and a plateau block solves for the supply (two bisections). Done in the
+//! block's sample, that is a burst of up to 25 RLS updates, or ≈ 3400 instructions of supply
+//! solution, every 10th sample. Instead:
+//!
+//! - learnt regressions are queued and the queue advances by [`WINDOW_UPDATES_PER_SAMPLE`]
+//!   window update per sample, every sample (valve open or not), after the sample's own block
+//!   work. The reported window ([`ReleaseEstimator::selected_window`]) goes first, so it learns
+//!   a block's regression in the block's own sample and the reported estimates are those of the
+//!   burst (except for ≤ 0.05 s after the fill's flush); the other windows follow, oldest
+//!   regression first, within the next block. Every window learns its regressions in the same
+//!   order as in the burst, so its state once the queue is empty is bit-identical. The CUSUM of
+//!   the next fill block finishes the queue first (a no-op in practice: it drains within a block).
+//! - the supply of a plateau block is solved over the following samples,
+//!   [`SUPPLY_STEPS_PER_SAMPLE`] bisection steps per sample (≈ 7 samples), from the block's
+//!   plateau level and the (then constant) fill windows, and published when done: the same value,
+//!   up to 0.07 s later. It starts at the first plateau block with an empty queue.
 
 pub mod model;
 pub mod rls;
@@ -102,6 +123,19 @@ pub const FILL_WINDOWS: usize = FILL_CUTOFFS_BAR_ABS.len();
 pub const PLATEAU_EXIT_FACTOR: f32 = 4.0;
 /// Delay (blocks) between a fill regression and its use by the RLS.
 pub const FILL_DELAY_BLOCKS: usize = 4;
+/// RLS window updates done per sample from the queue of learnt regressions (module docs).
+pub const WINDOW_UPDATES_PER_SAMPLE: usize = 1;
+/// Steps of the supply solution done per sample (a pass set-up or result, or one bisection
+/// step; a whole solution is 2 passes of 2 + [`model::InverseFlowShape::STEPS`]).
+pub const SUPPLY_STEPS_PER_SAMPLE: usize = 6;
+/// Queue of learnt fill regressions: one per block while filling, plus a flush of the delayed ones.
+const LEARN_QUEUE: usize = FILL_DELAY_BLOCKS + 1;
+
+/// d² (mm²) per unit conductance of [`TwinParams::nominal`] (see [`ReleaseEstimator::nominal`]).
+/// (≈ 17.171457 mm² s; exact bits of the `f64` computation narrowed to `f32`).
+const NOMINAL_MM2_PER_CONDUCTANCE: f32 = f32::from_bits(0x4189_5f25);
+/// Supply of [`TwinParams::nominal`], bar abs.
+const NOMINAL_SUPPLY_ABS_BAR: f32 = 8.7;
 
 /// Tuning of the release estimator.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -241,8 +275,18 @@ pub struct ReleaseEstimator {
     prev_block_sum: Option<i64>,
     fill_blocks: u32,
     cusum: f32,
+    /// Delayed fill regressions, a ring (oldest at `pending_head`; rings, not shifts: no memmove).
     pending: [Regression<2>; FILL_DELAY_BLOCKS],
+    pending_head: usize,
     pending_len: usize,
+    /// Learnt regressions whose window updates are not all done yet, oldest first.
+    learn_queue: [Regression<2>; LEARN_QUEUE],
+    /// Per queued regression, the windows (bit i: window i) that have not learnt it yet.
+    learn_windows: [u8; LEARN_QUEUE],
+    learn_head: usize,
+    learn_len: usize,
+    /// The supply solution of the last plateau block, in progress.
+    supply_solver: Option<SupplySolver>,
     window_sum: f32,
     window_len: u8,
     prev_window_mean: Option<f32>,
@@ -254,16 +298,21 @@ pub struct ReleaseEstimator {
 impl ReleaseEstimator {
     /// An estimator for a brake of the given nominal design (geometry, Cf, V0, supply).
     pub fn new(nominal: &TwinParams, config: EstimatorConfig) -> Result<Self, EstimatorError> {
-        let positive = |v: f32| v.is_finite() && v > 0.0;
-        if !(positive(config.rate_noise_bar_s)
-            && config.cusum_drift.is_finite()
-            && config.cusum_drift >= 0.0
-            && positive(config.cusum_threshold)
-            && positive(config.plateau_tolerance_bar))
-        {
-            return Err(EstimatorError::Config);
-        }
         nominal.validate().map_err(|_| EstimatorError::Config)?;
+        let (mm2_per_conductance, nominal_supply_abs) = Self::design_constants(nominal);
+        Self::with_design(mm2_per_conductance, nominal_supply_abs, config)
+    }
+
+    /// An estimator for the nominal brake ([`TwinParams::nominal`]) from precomputed design
+    /// constants: no `f64` set-up (soft-float and `libm` on the Cortex-M4F). A test checks that
+    /// it equals `ReleaseEstimator::new(&TwinParams::nominal(), config)`.
+    #[inline(always)]
+    pub fn nominal(config: EstimatorConfig) -> Result<Self, EstimatorError> {
+        Self::with_design(NOMINAL_MM2_PER_CONDUCTANCE, NOMINAL_SUPPLY_ABS_BAR, config)
+    }
+
+    /// d² (mm²) per unit conductance and the nominal supply (bar abs) of a brake design.
+    fn design_constants(nominal: &TwinParams) -> (f32, f32) {
         let gain_per_m2 =
             KAPPA * GAS_CONSTANT * libm::sqrt(TEMPERATURE_K) * nominal.discharge_coeff * c1() / nominal.dead_volume_m3;
         // d² = 4 A / π with A = g / gain; in mm².
@@ -274,11 +323,29 @@ impl ReleaseEstimator {
             let d = libm::sqrt(g * f64::from(mm2_per_conductance));
             (d - nominal.orifice.mm()).abs() < 1e-3
         });
+        (mm2_per_conductance, nominal.supply.to_abs_bar() as f32)
+    }
+
+    #[inline(always)]
+    fn with_design(
+        mm2_per_conductance: f32,
+        nominal_supply_abs: f32,
+        config: EstimatorConfig,
+    ) -> Result<Self, EstimatorError> {
+        let positive = |v: f32| v.is_finite() && v > 0.0;
+        if !(positive(config.rate_noise_bar_s)
+            && config.cusum_drift.is_finite()
+            && config.cusum_drift >= 0.0
+            && positive(config.cusum_threshold)
+            && positive(config.plateau_tolerance_bar))
+        {
+            return Err(EstimatorError::Config);
+        }
         let pending = [Regression { phi: [0.0; 2], y: 0.0 }; FILL_DELAY_BLOCKS];
         Ok(Self {
             config,
             mm2_per_conductance,
-            nominal_supply_abs: nominal.supply.to_abs_bar() as f32,
+            nominal_supply_abs,
             fills: [Rls::new(config.fill_rls, [0.0; 2])?; FILL_WINDOWS],
             selected: FILL_WINDOWS - 1,
             plateau: Rls::new(config.plateau_rls, [0.0])?,
@@ -290,7 +357,13 @@ impl ReleaseEstimator {
             fill_blocks: 0,
             cusum: 0.0,
             pending,
+            pending_head: 0,
             pending_len: 0,
+            learn_queue: pending_queue(),
+            learn_windows: [0; LEARN_QUEUE],
+            learn_head: 0,
+            learn_len: 0,
+            supply_solver: None,
             window_sum: 0.0,
             window_len: 0,
             prev_window_mean: None,
@@ -314,7 +387,11 @@ impl ReleaseEstimator {
         self.prev_block_sum = None;
         self.fill_blocks = 0;
         self.cusum = 0.0;
+        self.pending_head = 0;
         self.pending_len = 0;
+        self.learn_head = 0;
+        self.learn_len = 0;
+        self.supply_solver = None;
         self.window_sum = 0.0;
         self.window_len = 0;
         self.prev_window_mean = None;
@@ -361,6 +438,16 @@ impl ReleaseEstimator {
     /// An `Err` means one regression was refused or corrected (see [`RlsError`]); the
     /// estimator stays usable and the error is kept in [`Self::last_error`].
     pub fn update(&mut self, pressure: Option<PressureQ24>, valve_open: bool) -> Result<(), EstimatorError> {
+        let sampled = self.sample(pressure, valve_open);
+        // The queued window updates (module docs), spread over the samples; after the block, so
+        // the reported window learns a block's regression in the block's own sample.
+        let learnt = self.learn_step(WINDOW_UPDATES_PER_SAMPLE);
+        self.last_learn_error(learnt);
+        self.supply_step(SUPPLY_STEPS_PER_SAMPLE);
+        sampled.and(learnt)
+    }
+
+    fn sample(&mut self, pressure: Option<PressureQ24>, valve_open: bool) -> Result<(), EstimatorError> {
         if !valve_open {
             self.in_release = false;
             self.phase = Phase::Idle;
@@ -424,6 +511,9 @@ impl ReleaseEstimator {
         let reg = ChokedFillModel.regress(obs);
         self.fill_blocks = self.fill_blocks.saturating_add(1);
         if self.fill_blocks > self.config.fill_warmup_blocks {
+            // The CUSUM reads the top window: it must have learnt everything queued (it has, the
+            // queue drains within a block; this only keeps that exact should it ever not).
+            let drained = self.learn_step(LEARN_QUEUE * FILL_WINDOWS);
             let top_rls = &self.fills[FILL_WINDOWS - 1];
             let innovation = reg.y - top_rls.predict(&reg.phi);
             let spread = dot2(&reg.phi, &mat_vec2(top_rls.covariance(), &reg.phi));
@@ -433,18 +523,20 @@ impl ReleaseEstimator {
                 // The piston broke away (or the inlet left choke early): drop the delayed blocks.
                 self.phase = Phase::Transit;
                 self.pending_len = 0;
+                self.last_learn_error(drained);
                 return Ok(());
             }
+            self.last_learn_error(drained);
         }
         let mut result = Ok(());
-        if self.pending_len == FILL_DELAY_BLOCKS {
-            let oldest = self.pending[0];
-            self.pending.copy_within(1.., 0);
-            self.pending_len -= 1;
+        if self.pending_len >= FILL_DELAY_BLOCKS {
+            // Full: the oldest is learnt and its slot takes the new regression.
+            let oldest = self.pending[self.pending_head % FILL_DELAY_BLOCKS];
+            self.pending[self.pending_head % FILL_DELAY_BLOCKS] = reg;
+            self.pending_head = (self.pending_head + 1) % FILL_DELAY_BLOCKS;
             result = self.learn(&oldest);
-        }
-        if let Some(slot) = self.pending.get_mut(self.pending_len) {
-            *slot = reg;
+        } else {
+            self.pending[(self.pending_head + self.pending_len) % FILL_DELAY_BLOCKS] = reg;
             self.pending_len += 1;
         }
         result
@@ -454,24 +546,78 @@ impl ReleaseEstimator {
     fn flush_pending(&mut self) -> Result<(), EstimatorError> {
         let mut result = Ok(());
         for i in 0..self.pending_len.min(FILL_DELAY_BLOCKS) {
-            let reg = self.pending[i];
+            let reg = self.pending[(self.pending_head + i) % FILL_DELAY_BLOCKS];
             result = result.and(self.learn(&reg));
         }
+        self.pending_head = 0;
         self.pending_len = 0;
         result
     }
 
-    /// One fill regression into every window whose cutoff lies above its pressure.
+    /// Queues one fill regression for every window whose cutoff lies above its pressure
+    /// ([`Self::learn_step`] does the updates).
     fn learn(&mut self, reg: &Regression<2>) -> Result<(), EstimatorError> {
         // φ = [1, −ψ(p)] and ψ is increasing, so the window test needs the pressure: ψ = p once
         // choked (p ≥ 1.9 bar abs) and all cutoffs are above that.
         let pressure = -reg.phi[1];
-        let mut result = Ok(());
-        for (rls, &cutoff) in self.fills.iter_mut().zip(&FILL_CUTOFFS_BAR_ABS) {
+        let mut windows = 0u8;
+        for (i, &cutoff) in FILL_CUTOFFS_BAR_ABS.iter().enumerate() {
             if pressure <= cutoff {
+                windows |= 1 << i;
+            }
+        }
+        if windows == 0 {
+            return Ok(());
+        }
+        // Never full in practice (module docs); if it were, finish the queue first (exact, a burst).
+        let result = if self.learn_len == LEARN_QUEUE { self.learn_step(LEARN_QUEUE * FILL_WINDOWS) } else { Ok(()) };
+        if self.learn_len < LEARN_QUEUE {
+            let slot = (self.learn_head + self.learn_len) % LEARN_QUEUE;
+            self.learn_queue[slot] = *reg;
+            self.learn_windows[slot] = windows;
+            self.learn_len += 1;
+        }
+        result
+    }
+
+    /// Keeps the error of a queue step done inside a block (the block's own result is separate).
+    fn last_learn_error(&mut self, result: Result<(), EstimatorError>) {
+        if let Err(e) = result {
+            self.last_error = Some(e);
+        }
+    }
+
+    /// Does up to `budget` queued window updates. The reported window ([`Self::selected_window`])
+    /// goes first: it learns the oldest queued regression it has not learnt yet, so the
+    /// estimates are those of the burst except right after a flush. Then the other windows, oldest
+    /// regression first, windows in index order. Every window learns its regressions in order.
+    fn learn_step(&mut self, mut budget: usize) -> Result<(), EstimatorError> {
+        let mut result = Ok(());
+        while budget > 0 && self.learn_len > 0 {
+            let selected = self.selected.min(FILL_WINDOWS - 1);
+            let selected_bit = 1u8 << selected;
+            let reported = (0..self.learn_len)
+                .map(|k| (self.learn_head + k) % LEARN_QUEUE)
+                .find(|&slot| self.learn_windows[slot] & selected_bit != 0);
+            let (slot, window) = match reported {
+                Some(slot) => (slot, selected),
+                None => {
+                    let slot = self.learn_head % LEARN_QUEUE;
+                    (slot, self.learn_windows[slot].trailing_zeros() as usize)
+                }
+            };
+            self.learn_windows[slot] &= !(1u8 << (window & 7));
+            let reg = self.learn_queue[slot];
+            if let Some(rls) = self.fills.get_mut(window) {
                 if let Err(e) = rls.update(&reg.phi, reg.y) {
                     result = Err(EstimatorError::Rls(e));
                 }
+            }
+            budget -= 1;
+            // Regressions every window has learnt leave the front of the queue.
+            while self.learn_len > 0 && self.learn_windows[self.learn_head % LEARN_QUEUE] == 0 {
+                self.learn_head = (self.learn_head + 1) % LEARN_QUEUE;
+                self.learn_len -= 1;
             }
         }
         result
@@ -513,32 +659,60 @@ impl ReleaseEstimator {
         self.plateau_blocks = self.plateau_blocks.saturating_add(1);
         let reg = PlateauModel.regress(&BlockObservation { pressure, mid_pressure: pressure, rate: 0.0 });
         self.plateau.update(&reg.phi, reg.y)?;
-        self.update_supply();
+        // The supply is a function of the current plateau and fill states: while the fill
+        // windows still learn queued regressions it waits for the next plateau block.
+        if self.learn_len == 0 {
+            // Solved over the next samples ([`SUPPLY_STEPS_PER_SAMPLE`]; module docs).
+            let p_inf = self.plateau.theta()[0];
+            self.supply_solver =
+                Some(SupplySolver { p_inf, supply_abs: None, selected: self.selected, pass: 0, search: None });
+        }
         Ok(())
     }
 
     /// Supply from the plateau equilibrium `a · φ(P∞/Ps) = g_leak · ψ(P∞)` (module docs, 2.),
-    /// with the fill window chosen from Ps ≥ P∞ and then refined once with the new Ps.
-    fn update_supply(&mut self) {
-        let p_inf = self.plateau.theta()[0];
-        let mut supply = p_inf;
-        self.supply_abs = None;
-        for _ in 0..2 {
-            self.selected = select_window(supply);
-            let fill = self.fill();
-            let [a, g_leak] = *fill.theta();
-            if fill.updates() == 0 || a.is_nan() || a <= 0.0 {
-                // No fill data: only the plateau; without a leak estimate assume none.
-                self.supply_abs = Some(p_inf);
-                return;
+    /// with the fill window chosen from Ps ≥ P∞ and then refined once with the new Ps: does up
+    /// to `budget` steps of the solution started by the last plateau block (a pass's set-up or
+    /// result, or one bisection step) and publishes `selected` and `supply_abs` when it ends.
+    fn supply_step(&mut self, mut budget: usize) {
+        while budget > 0 {
+            let Some(solver) = self.supply_solver.as_mut() else { return };
+            budget -= 1;
+            let p_inf = solver.p_inf;
+            let finished = match solver.search.as_mut() {
+                // One bisection step (a step is done only while the search is not complete).
+                Some(search) if !search.done() => !search.step(),
+                Some(search) => {
+                    let supply = p_inf / search.ratio();
+                    solver.supply_abs = Some(supply);
+                    solver.search = None;
+                    solver.pass += 1;
+                    solver.pass >= 2
+                }
+                None => {
+                    solver.selected = select_window(solver.supply_abs.unwrap_or(p_inf));
+                    let fill = self.fills.get(solver.selected).unwrap_or(&self.fills[FILL_WINDOWS - 1]);
+                    let [a, g_leak] = *fill.theta();
+                    if fill.updates() == 0 || a.is_nan() || a <= 0.0 {
+                        // No fill data: only the plateau; without a leak estimate assume none.
+                        solver.supply_abs = Some(p_inf);
+                        true
+                    } else {
+                        let target = g_leak * model::leak_shape(p_inf) / a;
+                        // Choked plateau: Ps does not enter the equilibrium.
+                        let choked = target.is_nan() || target >= CHOKED_PLATEAU_TARGET;
+                        if !choked {
+                            solver.search = Some(model::InverseFlowShape::new(target));
+                        }
+                        choked
+                    }
+                }
+            };
+            if finished {
+                self.selected = solver.selected;
+                self.supply_abs = solver.supply_abs;
+                self.supply_solver = None;
             }
-            let target = g_leak * model::leak_shape(p_inf) / a;
-            if target.is_nan() || target >= CHOKED_PLATEAU_TARGET {
-                // Choked plateau: Ps does not enter the equilibrium.
-                return;
-            }
-            supply = p_inf / model::inverse_flow_shape(target);
-            self.supply_abs = Some(supply);
         }
     }
 
@@ -582,6 +756,27 @@ impl ReleaseEstimator {
     }
 }
 
+/// The supply solution of one plateau block (`update_supply` of the module docs, 2.), spread
+/// over the samples that follow it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct SupplySolver {
+    /// Plateau level of the block, bar abs.
+    p_inf: f32,
+    /// Supply so far (`None`: not identifiable, or no pass done).
+    supply_abs: Option<f32>,
+    /// Fill window of the current pass.
+    selected: usize,
+    /// Passes done (2 in all).
+    pass: u8,
+    /// The bisection of the current pass, once set up.
+    search: Option<model::InverseFlowShape>,
+}
+
+/// An empty queue of learnt regressions.
+const fn pending_queue() -> [Regression<2>; LEARN_QUEUE] {
+    [Regression { phi: [0.0; 2], y: 0.0 }; LEARN_QUEUE]
+}
+
 /// `g_leak ψ(P∞) / a` at or above which Ps counts as not identifiable: φ(r) ≥ 0.8 means
 /// r ≲ 0.81, where φ is so flat near choke that noise in `a` and `g_leak` moves Ps by bars.
 const CHOKED_PLATEAU_TARGET: f32 = 0.8;
@@ -600,4 +795,21 @@ fn dot2(a: &[f32; 2], b: &[f32; 2]) -> f32 {
 #[inline]
 fn mat_vec2(m: &[[f32; 2]; 2], v: &[f32; 2]) -> [f32; 2] {
     [dot2(&m[0], v), dot2(&m[1], v)]
+}
+
+#[cfg(test)]
+mod tests {
+    extern crate std;
+    use super::*;
+    use std::format;
+
+    #[test]
+    fn precomputed_nominal_design_equals_the_nominal_parameters() {
+        let (mm2, supply) = ReleaseEstimator::design_constants(&TwinParams::nominal());
+        assert_eq!(mm2.to_bits(), NOMINAL_MM2_PER_CONDUCTANCE.to_bits());
+        assert_eq!(supply.to_bits(), NOMINAL_SUPPLY_ABS_BAR.to_bits());
+        let config = EstimatorConfig::default();
+        let (a, b) = (ReleaseEstimator::new(&TwinParams::nominal(), config), ReleaseEstimator::nominal(config));
+        assert_eq!(format!("{a:?}"), format!("{b:?}"));
+    }
 }

@@ -67,7 +67,9 @@ impl RegressionModel<1> for PlateauModel {
 pub fn flow_shape(ratio: f32) -> f32 {
     // `as` saturates and maps NaN to 0 (which reads as choked: harmless, inputs are checked).
     let r_q16 = (ratio.clamp(0.0, 1.0) * 65_536.0) as u32;
-    flow_norm_q16(r_q16) as f32 * (1.0 / 65_536.0)
+    // 0..=65536: exact through i32, whose conversion is one FPU instruction (i64 → f32 is a
+    // soft-float call on the Cortex-M4F).
+    flow_norm_q16(r_q16) as i32 as f32 * (1.0 / 65_536.0)
 }
 
 /// Leak flow shape ψ(p) = p · φ(P0/p) for chamber pressure `p` (bar abs, P0 = 1 bar): the leak's
@@ -86,23 +88,62 @@ pub fn leak_shape(pressure: f32) -> f32 {
 /// The ratio `r ∈ [0.528, 1]` with `flow_shape(r) = target`, by bisection (φ is monotone
 /// decreasing there). `target ≤ 0` gives 1, `target ≥ 1` gives 0.528.
 pub fn inverse_flow_shape(target: f32) -> f32 {
-    // NaN lands here too (not > 0): no leak information, r = 1.
-    if target.is_nan() || target <= 0.0 {
-        return 1.0;
-    }
-    if target >= 1.0 {
-        return CRITICAL_RATIO;
-    }
-    let (mut lo, mut hi) = (CRITICAL_RATIO, 1.0f32);
-    for _ in 0..18 {
-        let mid = 0.5 * (lo + hi);
-        if flow_shape(mid) > target {
-            lo = mid;
+    let mut search = InverseFlowShape::new(target);
+    while search.step() {}
+    search.ratio()
+}
+
+/// [`inverse_flow_shape`] one bisection step at a time (the estimator spreads it over samples).
+/// Stepping it to the end gives the same bits as [`inverse_flow_shape`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InverseFlowShape {
+    target: f32,
+    lo: f32,
+    hi: f32,
+    steps_left: u8,
+}
+
+impl InverseFlowShape {
+    /// Bisection steps of a full search (interval 0.472 · 2⁻¹⁸ ≈ 2e-6).
+    pub const STEPS: u8 = 18;
+
+    /// A search for `target` (trivial cases are solved here, with no step left).
+    pub fn new(target: f32) -> Self {
+        // NaN lands in the first case too (not > 0): no leak information, r = 1.
+        let (lo, hi, steps_left) = if target.is_nan() || target <= 0.0 {
+            (1.0, 1.0, 0)
+        } else if target >= 1.0 {
+            (CRITICAL_RATIO, CRITICAL_RATIO, 0)
         } else {
-            hi = mid;
-        }
+            (CRITICAL_RATIO, 1.0, Self::STEPS)
+        };
+        Self { target, lo, hi, steps_left }
     }
-    0.5 * (lo + hi)
+
+    /// One bisection step; `false` (and nothing done) once the search is complete.
+    pub fn step(&mut self) -> bool {
+        if self.steps_left == 0 {
+            return false;
+        }
+        self.steps_left -= 1;
+        let mid = 0.5 * (self.lo + self.hi);
+        if flow_shape(mid) > self.target {
+            self.lo = mid;
+        } else {
+            self.hi = mid;
+        }
+        true
+    }
+
+    /// True when no step is left.
+    pub fn done(&self) -> bool {
+        self.steps_left == 0
+    }
+
+    /// The ratio found (the midpoint of the current interval; exact for the trivial cases).
+    pub fn ratio(&self) -> f32 {
+        0.5 * (self.lo + self.hi)
+    }
 }
 
 #[cfg(test)]

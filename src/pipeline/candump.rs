@@ -71,7 +71,10 @@ impl Cursor<'_> {
 }
 
 /// Runs `encode` on a stack buffer of `N` bytes and hands the text to a formatter.
-fn display_via<const N: usize>(f: &mut fmt::Formatter<'_>, encode: impl FnOnce(&mut [u8]) -> Option<usize>) -> fmt::Result {
+fn display_via<const N: usize>(
+    f: &mut fmt::Formatter<'_>,
+    encode: impl FnOnce(&mut [u8]) -> Option<usize>,
+) -> fmt::Result {
     let mut buf = [0u8; N];
     let len = encode(&mut buf).ok_or(fmt::Error)?;
     // Only ASCII is ever written.

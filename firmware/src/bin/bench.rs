@@ -13,9 +13,10 @@
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
 use pbm::classifier::diagnose;
+use pbm::estimator::{EstimatorConfig, ReleaseEstimator};
 use pbm::features::ReleaseFeatures;
 use pbm::pipeline::Pipeline;
-use pbm::{AdcCounts, Twin, TwinParams};
+use pbm::{AdcCounts, Twin};
 use pbm_firmware::adc::ADC_TRACE;
 use pbm_firmware::console::exit;
 use pbm_firmware::{println, stack, time_driver};
@@ -30,13 +31,26 @@ struct Stats {
     n: u64,
     total: u64,
     max: u64,
+    /// Index (in calls to `add`) of the largest measurement.
+    argmax: u64,
+    /// Measurements above the per-sample budget of issue 7.
+    over_budget: u64,
 }
+
+/// Per-sample budget of issue 7, instructions.
+const BUDGET_INSTR: u64 = 5000;
 
 impl Stats {
     fn add(&mut self, instr: u64) {
+        if instr > self.max {
+            self.max = instr;
+            self.argmax = self.n;
+        }
+        if instr > BUDGET_INSTR {
+            self.over_budget += 1;
+        }
         self.n += 1;
         self.total += instr;
-        self.max = self.max.max(instr);
     }
     fn mean(&self) -> u64 {
         self.total.checked_div(self.n).unwrap_or(0)
@@ -95,7 +109,8 @@ fn main() -> ! {
     println!("bracket_overhead_instr={overhead}");
 
     // The core's per-sample pipeline (the monitor task's work) over the compiled-in trace.
-    let (Ok(mut pipeline), Ok(mut twin)) = (Pipeline::nominal(), Twin::new(&TwinParams::nominal())) else {
+    let mut twin = Twin::nominal();
+    let Ok(mut pipeline) = Pipeline::nominal() else {
         println!("bench: nominal parameters rejected");
         exit(false)
     };
@@ -104,6 +119,11 @@ fn main() -> ! {
     let mut twin_only = Stats::default();
     let mut features_cost = Stats::default();
     let mut features = ReleaseFeatures::new();
+    let mut estimator_cost = Stats::default();
+    let Ok(mut estimator) = ReleaseEstimator::nominal(EstimatorConfig::default()) else {
+        println!("bench: estimator configuration rejected");
+        exit(false)
+    };
     let mut frames = 0usize;
     for &code in ADC_TRACE.iter() {
         let (instr, step) = measure(overhead, || pipeline.step(AdcCounts(code), true));
@@ -116,6 +136,8 @@ fn main() -> ! {
         frames += step.frames.as_slice().len();
         twin_only.add(measure(overhead, || twin.update(true)).0);
         features_cost.add(measure(overhead, || features.update(&step.monitor)).0);
+        let measured = step.monitor.measured.ok();
+        estimator_cost.add(measure(overhead, || estimator.update(measured, true)).0);
     }
     let (close_instr, closed) = measure(overhead, || pipeline.close());
     if let Some((_, outbox)) = closed {
@@ -129,10 +151,15 @@ fn main() -> ! {
     println!("pipeline_instr_per_sample_mean={}", per_sample.mean());
     println!("pipeline_instr_per_sample_max={}", per_sample.max);
     println!("closing_sample_instr={}", closing.max);
+    println!("pipeline_max_at_sample={}", per_sample.argmax);
+    println!("pipeline_samples_over_budget={}", per_sample.over_budget);
     println!("twin_instr_per_sample_mean={}", twin_only.mean());
     println!("twin_instr_per_sample_max={}", twin_only.max);
     println!("features_instr_per_sample_mean={}", features_cost.mean());
     println!("features_instr_per_sample_max={}", features_cost.max);
+    println!("estimator_instr_per_sample_mean={}", estimator_cost.mean());
+    println!("estimator_instr_per_sample_max={}", estimator_cost.max);
+    println!("estimator_max_at_sample={}", estimator_cost.argmax);
     println!("classify_instr={classify}");
     println!("verdict={verdict:?}");
     println!("static_ram_bytes={}", stack::static_ram());
