@@ -1,33 +1,73 @@
 //! `host-sim audit`: model-discrepancy audit of a data set of releases of one locomotive.
 //!
-//! 1. **Data** (SPEC §7): every trace of the manifest, converted to bar g. Traces are grouped by
-//!    their documented configuration (`# supply_bar_g`, `# orifice_mm`, `# leak_mm` metadata or
-//!    any key containing `supply`, `orifice` or `leak` but not `laminar`; undocumented values
-//!    are the nominal brake). Releases of one configuration have the same noise-free response,
-//!    so each group is fitted through its *mean* trace (noise σ/√n). The noise σ of every trace
-//!    is estimated from the data (MAD of second differences), never assumed.
+//! # Input
+//!
+//! A SPEC §7 data set directory (`manifest.csv` + traces, `t_s,adc` or `t_s,p_bar`) holding
+//! releases of **one locomotive** at its documented configuration, at least a few seconds each,
+//! 100 Hz from the release command. Ten or more releases are recommended: the audit works on the
+//! mean trace, whose noise sets the floor of the extended NMSE. A synthetic one with a hidden
+//! mechanism:
+//!
+//! ```text
+//! host-sim generate --out D --locomotives 1 --split shared --classes normal \
+//!     --per-class 20 --test-per-class 0 --seed 7 --effect valve_lag=0.5 [--effect NAME=VALUE …]
+//! host-sim audit D --json D/audit.json --plot D/plots --report
+//! ```
+//!
+//! # Method
+//!
+//! 1. **Data**: every trace of the manifest, converted to bar g. Traces are grouped by their
+//!    documented configuration (`# supply_bar_g`, `# orifice_mm`, `# leak_mm` metadata or any
+//!    key containing `supply`, `orifice` or `leak` but not `laminar`/`effect`; undocumented
+//!    values are the nominal brake). Releases of one configuration have the same noise-free
+//!    response, so each group is fitted through its *mean* trace (noise σ/√n). The noise σ of
+//!    every trace is estimated from the data (MAD of second differences), never assumed.
 //! 2. **Base fit**: the fixed-point core twin ([`pbm::Twin`], ≈ 1 ms per 60 s release) with six
 //!    base parameters free inside the locomotive's manufacturing tolerance (SPEC §5): Cf, V0, F0,
 //!    K, friction (Fc and Fs together) each × (1 ± 5.5 %), supply ± 0.035 bar. Bounding the base
 //!    to its tolerance is what lets an extension show up at all: a supply temperature, for
 //!    instance, is *exactly* a Cf scale (both orifice flows scale by sqrt(T/T0)), so only the
-//!    part outside the Cf tolerance is attributable to it.
+//!    part outside the Cf tolerance is attributable to it (its magnitude is then reported at the
+//!    nominal Cf, with the Cf tolerance in its uncertainty).
 //! 3. **Diagnostics** of the base residual: by release phase (filling at rest, stroke, end stop
 //!    and plateau, from the twin's travel), by time, Ljung–Box whiteness, cross-correlation with
 //!    the twin's pressure rate (the input the chamber sees) and the phase indicator.
-//! 4. **Candidates**: base + each mechanism of [`crate::plant::Effect`], then pairs of the three
-//!    best singles; each is a bounded Levenberg–Marquardt fit (own implementation, ≈ 60 lines:
-//!    argmin's Nelder–Mead needs several hundred twin runs per fit where LM needs 8 per
-//!    iteration, and its Jacobian columns run in parallel) from several starting magnitudes,
-//!    on every [`DECIMATE`]-th sample, candidates in parallel (rayon).
+//! 4. **Candidates**: base + each mechanism of [`crate::plant::Effect`] (the extended core twin,
+//!    the same terms the firmware can run), then the pairs of the [`PAIR_POOL`] best singles.
+//!    Each is a bounded Levenberg–Marquardt fit (own implementation with an active set on the
+//!    box bounds: argmin's Nelder–Mead needs several hundred twin runs per fit where LM needs
+//!    8 per iteration, and its Jacobian columns run in parallel) on every [`DECIMATE`]-th
+//!    sample. Every candidate is screened ([`SCREEN_ITER`] iterations from several starting
+//!    magnitudes, one of them "off", so no candidate ends worse than the base it contains),
+//!    the best [`REFINED_SINGLES`] singles and [`REFINED_PAIRS`] pairs are refined to
+//!    convergence. When the best pair could be named, each of its mechanisms is refitted alone
+//!    from the pair's optimum, and a pair with one mechanism switched off counts as that single,
+//!    so a second mechanism is only named when it is really needed. ≈ 3 000 twin runs, a few
+//!    seconds on two cores.
 //! 5. **Decision**: BIC with unknown noise scale, corrected for residual correlation:
 //!    ΔBIC = n_eff ln(RSS_base/RSS) − Δk ln n_eff, n_eff = n (1 − ρ)/(1 + ρ) with ρ the lag-1
 //!    autocorrelation of the best model's residual (a smooth leftover misfit counts as few
 //!    observations, so it cannot make a tiny improvement look significant). A mechanism is named
-//!    when ΔBIC > [`BIC_THRESHOLD`] *and* it cuts the RSS by at least [`MIN_RSS_RATIO`]; a pair
-//!    replaces the best single under the same two rules against that single. Otherwise `none`.
-//!    The magnitude's uncertainty is the 1-σ of the Gauss–Newton covariance s² (JᵀJ)⁻¹ at the
-//!    optimum, inflated by n/n_eff.
+//!    when ΔBIC > [`BIC_THRESHOLD`] *and* it cuts the RSS by at least [`MIN_RSS_RATIO`]; the best
+//!    pair replaces the best single under the same two rules against that single. Otherwise
+//!    `none`. The magnitude's uncertainty is the 1-σ of the Gauss–Newton covariance s² (JᵀJ)⁻¹
+//!    at the optimum, inflated by n/n_eff.
+//!
+//! # Output
+//!
+//! The verdict ([`AuditOutcome`], `--json`: see [`AuditOutcome::to_json`]; a pair is `a+b` with
+//! magnitude `[ma, mb]`), base and extended NMSE (SPEC §6 over samples with P > 0.2 bar g, against
+//! the mean measured trace; the per-trace mean is reported too), `--plot DIR` (measured vs base
+//! vs extended, residuals with phase boundaries, residual autocorrelation) and `--report [FILE]`
+//! (one self-contained HTML page). For other tools: [`audit_dir`], [`write_outputs`],
+//! [`crate::audit_plot::svgs`] and [`crate::audit_plot::html_section`].
+//!
+//! # Limits (measured in bench/audit_sweep.md)
+//!
+//! A mechanism is only identifiable where the base twin, within the locomotive's tolerance,
+//! cannot mimic it: `gas_temperature` between ≈ 235 K and ≈ 375 K is a Cf change inside the ± 5 %
+//! spread (`none` is then the right answer), a `regulator_droop` below ≈ 0.4 bar is mostly a Cf
+//! and supply change, and a `sensor_gain` closer to 1 than ≈ 0.02 is partly a supply change.
 
 use crate::dataset::{read_manifest, trace_path};
 use crate::plant::Effect;
@@ -264,6 +304,76 @@ pub fn twin_trace(params: &TwinParams, n: usize) -> Option<(Vec<f64>, Vec<f64>)>
     Some((p, x))
 }
 
+/// True when `effects` make the supply gas temperature and Cf one direction (no heat transfer:
+/// every orifice flow's pressure rate scales by Cf √(T/T0)).
+fn cf_degenerate(effects: &[Effect]) -> bool {
+    effects.contains(&Effect::GasTemperature) && !effects.contains(&Effect::HeatTransfer)
+}
+
+/// Moves a gas-temperature fit along the Cf–T degenerate direction to the nominal Cf (the centre
+/// of its tolerance), keeping the product Cf √(T/T0) and therefore the fit: the data cannot say
+/// which of the two it is, and the centre halves the worst-case magnitude error.
+fn recenter_gas_temperature(effects: &[Effect], x: &mut [f64]) {
+    if !cf_degenerate(effects) {
+        return;
+    }
+    let Some(i) = effects.iter().position(|&e| e == Effect::GasTemperature) else {
+        return;
+    };
+    let g = BASE_NAMES.len() + i;
+    let (Some(&u_cf), Some(&u_t)) = (x.first(), x.get(g)) else {
+        return;
+    };
+    let cf_scale = 1.0 + BASE_SPREAD * (2.0 * u_cf - 1.0);
+    let t = effect_value(Effect::GasTemperature, u_t);
+    let t_centre = pbm::params::TEMPERATURE_K * (cf_scale * (t / pbm::params::TEMPERATURE_K).sqrt()).powi(2);
+    let (lo, hi) = Effect::GasTemperature.search_range();
+    if (lo..=hi).contains(&t_centre) {
+        x[0] = 0.5;
+        x[g] = effect_u(Effect::GasTemperature, t_centre);
+    }
+}
+
+/// True when normalised coordinate `u` switches `effect` off (to 1e-3 of its search range).
+fn is_off(effect: Effect, u: f64) -> bool {
+    let (lo, hi) = effect.search_range();
+    (effect_value(effect, u) - effect.off_value()).abs() <= 1e-3 * (hi - lo)
+}
+
+/// A pair fit with one mechanism switched off *is* a fit of the other mechanism alone: it
+/// replaces that single's fit when better (the single's own search stopped in a worse point)
+/// and is dropped as a pair, so an "a + nothing" model can never be named as a pair.
+fn collapse_degenerate_pairs(fits: &mut Vec<(Vec<Effect>, LmResult, usize)>) {
+    let nb = BASE_NAMES.len();
+    let mut singles_better = Vec::new();
+    fits.retain(|(effects, lm, ev)| {
+        if effects.len() != 2 {
+            return true;
+        }
+        let Some(k) = (0..2).find(|&k| lm.x.get(nb + k).is_some_and(|&u| is_off(effects[k], u))) else {
+            return true;
+        };
+        let keep = 1 - k;
+        let dims = lm.x.len();
+        let idx: Vec<usize> = (0..dims).filter(|&i| i != nb + k).collect();
+        let x = idx.iter().map(|&i| lm.x[i]).collect();
+        let jtj =
+            idx.iter().flat_map(|&a| idx.iter().map(move |&b| (a, b))).map(|(a, b)| lm.jtj[a * dims + b]).collect();
+        let single = LmResult { x, residual: lm.residual.clone(), rss: lm.rss, jtj, evaluations: lm.evaluations };
+        singles_better.push((effects[keep], single, *ev));
+        false
+    });
+    for (effect, lm, ev) in singles_better {
+        if let Some(f) = fits.iter_mut().find(|f| f.0 == [effect]) {
+            if lm.rss < f.1.rss {
+                f.1 = lm;
+                f.2 += ev;
+            }
+        }
+    }
+    fits.sort_by(|a, b| a.1.rss.total_cmp(&b.1.rss));
+}
+
 /// Result of [`levenberg_marquardt`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct LmResult {
@@ -324,8 +434,30 @@ where
             for a in 0..dims {
                 m[a * dims + a] += lambda * (jtj[a * dims + a] + 1e-9);
             }
-            let neg_g: Vec<f64> = g.iter().map(|v| -v).collect();
-            let Some(step) = solve(&m, &neg_g, dims) else {
+            let mut neg_g: Vec<f64> = g.iter().map(|v| -v).collect();
+            // Active set: a coordinate on a bound whose step points out of the box is frozen and
+            // the step re-solved for the others (clamping alone would spoil their step).
+            let mut step = solve(&m, &neg_g, dims);
+            for _ in 0..dims {
+                let Some(st) = &step else { break };
+                let blocked: Vec<usize> = (0..dims)
+                    .filter(|&j| (x[j] <= 0.0 && st[j] < 0.0) || (x[j] >= 1.0 && st[j] > 0.0))
+                    .filter(|&j| neg_g[j] != 0.0 || m[j * dims + j] != 1.0)
+                    .collect();
+                if blocked.is_empty() {
+                    break;
+                }
+                for j in blocked {
+                    for k in 0..dims {
+                        m[j * dims + k] = 0.0;
+                        m[k * dims + j] = 0.0;
+                    }
+                    m[j * dims + j] = 1.0;
+                    neg_g[j] = 0.0;
+                }
+                step = solve(&m, &neg_g, dims);
+            }
+            let Some(step) = step else {
                 lambda *= 10.0;
                 continue;
             };
@@ -370,11 +502,12 @@ fn solve(m: &[f64], b: &[f64], n: usize) -> Option<Vec<f64>> {
             return None;
         }
         a.swap(c, piv);
-        for r in 0..n {
+        let pivot_row = a[c].clone();
+        for (r, row) in a.iter_mut().enumerate() {
             if r != c {
-                let f = a[r][c] / a[c][c];
-                for k in c..=n {
-                    a[r][k] -= f * a[c][k];
+                let f = row[c] / pivot_row[c];
+                for (v, p) in row[c..].iter_mut().zip(&pivot_row[c..]) {
+                    *v -= f * p;
                 }
             }
         }
@@ -694,7 +827,9 @@ impl Default for AuditOptions {
 /// The audit's verdict and evidence.
 #[derive(Debug, Clone)]
 pub struct AuditOutcome {
-    /// Named cause: a mechanism, `a+b`, or `none`.
+    /// Where the data came from (directory or description).
+    pub source: String,
+    /// Named cause: a mechanism, `a+b` (names in [`Effect::ALL`] order), or `none`.
     pub cause: String,
     /// Mechanisms of the cause with magnitude and 1-σ uncertainty (empty for `none`).
     pub cause_effects: Vec<(Effect, f64, f64)>,
@@ -770,10 +905,16 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     let mut fits = prob.screen_and_refine(&single_jobs, REFINED_SINGLES, opts.max_iter);
     if opts.pairs && fits.len() >= 2 {
         let top: Vec<(Effect, f64, Vec<f64>)> =
-            fits.iter().take(PAIR_POOL).map(|(e, lm, _)| (e[0], lm.x[nb], lm.x[..nb].to_vec())).collect();
+            fits.iter().map(|(e, lm, _)| (e[0], lm.x[nb], lm.x[..nb].to_vec())).collect();
         let mut pair_jobs = Vec::new();
         for i in 0..top.len() {
             for j in i + 1..top.len() {
+                // Every pair among the best singles, and the best single with every other
+                // mechanism (forward selection: a mechanism that a base parameter mimics alone,
+                // like a supply temperature, can still be needed next to another one).
+                if !(j < PAIR_POOL || i == 0) {
+                    continue;
+                }
                 // Canonical order (that of `Effect::ALL`), so `a+b` names are stable.
                 let (a, b) = if top[i].0 <= top[j].0 { (&top[i], &top[j]) } else { (&top[j], &top[i]) };
                 let (oa, ob) = (off_u(a.0), off_u(b.0));
@@ -786,14 +927,50 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
                 pair_jobs.push((vec![a.0, b.0], starts));
             }
         }
-        fits.extend(prob.screen_and_refine(&pair_jobs, REFINED_PAIRS, opts.max_iter));
+        let pairs = prob.screen_and_refine(&pair_jobs, REFINED_PAIRS, opts.max_iter);
+        // Is the second mechanism needed? Each single of the best pair is refitted from the
+        // pair's optimum with the other mechanism removed: a single whose own search stopped
+        // in a worse point must not make a pair look better than it is.
+        // Only the best pair can be named, and only if it beats the best single by the RSS rule.
+        let best_single_rss = fits.first().map_or(f64::INFINITY, |f| f.1.rss);
+        let drop_jobs: Vec<(Effect, Vec<f64>)> = pairs
+            .iter()
+            .take(1)
+            .filter(|(_, lm, _)| lm.rss * MIN_RSS_RATIO <= best_single_rss)
+            .flat_map(|(effects, lm, _)| {
+                (0..2).map(move |k| {
+                    let x = lm.x.iter().enumerate().filter(|&(i, _)| i != nb + 1 - k).map(|(_, &v)| v).collect();
+                    (effects[k], x)
+                })
+            })
+            .collect();
+        let refits: Vec<(Effect, LmResult, usize)> = drop_jobs
+            .par_iter()
+            .filter_map(|(e, x0)| prob.fit(&[*e], std::slice::from_ref(x0), opts.max_iter).map(|(lm, ev)| (*e, lm, ev)))
+            .collect();
+        for (e, lm, ev) in refits {
+            if let Some(f) = fits.iter_mut().find(|f| f.0 == [e]) {
+                f.2 += ev;
+                if lm.rss < f.1.rss {
+                    f.1 = lm;
+                }
+            }
+        }
+        fits.extend(pairs);
     }
 
+    collapse_degenerate_pairs(&mut fits);
+    for (effects, lm, _) in &mut fits {
+        recenter_gas_temperature(effects, &mut lm.x);
+    }
     // Effective sample count from the best model's residual correlation.
     let best_all = fits.iter().map(|f| &f.1).chain([&base_lm]).min_by(|a, b| a.rss.total_cmp(&b.rss)).cloned();
     let best_all = best_all.context("no model could be fitted")?;
     let rho = acf(&best_all.residual, 1).first().copied().unwrap_or(0.0).clamp(0.0, 0.995);
-    let n_eff = (n as f64 * (1.0 - rho) / (1.0 + rho)).max(5.0);
+    // Floor: one independent observation per second of trace (the release dynamics are ~1 s
+    // and slower), so a model that fits badly everywhere cannot hide a large improvement.
+    let seconds: f64 = data.groups.iter().map(|g| g.mean.len() as f64 * SAMPLE_PERIOD_S).sum();
+    let n_eff = (n as f64 * (1.0 - rho) / (1.0 + rho)).max(seconds.min(n as f64)).max(5.0);
     let inflation = n as f64 / n_eff;
     let dbic = |rss0: f64, rss1: f64, dk: usize| n_eff * (rss0 / rss1.max(1e-300)).ln() - dk as f64 * n_eff.ln();
 
@@ -813,8 +990,17 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
             let s2 = lm.rss / (n.saturating_sub(dims).max(1)) as f64 * inflation;
             let diag = inverse_diag(&lm.jtj, dims);
             for (i, eff) in c.effects.iter_mut().enumerate() {
-                let var_u = diag[nb + i] * s2;
-                eff.2 = var_u.max(0.0).sqrt() * effect_slope(eff.0, lm.x[nb + i]).abs();
+                let g = nb + i;
+                let slope = effect_slope(eff.0, lm.x[g]).abs();
+                eff.2 = if cf_degenerate(effects) && eff.0 == Effect::GasTemperature {
+                    // Cf and T are one direction: the statistical part with Cf held, plus the
+                    // Cf tolerance (uniform ± BASE_SPREAD, T ∝ Cf⁻²) as a prior uncertainty.
+                    let stat = (s2 / lm.jtj[g * dims + g].max(1e-300)).sqrt() * slope;
+                    let prior = eff.1 * 2.0 * BASE_SPREAD / 3f64.sqrt();
+                    stat.hypot(prior)
+                } else {
+                    (diag[g] * s2).max(0.0).sqrt() * slope
+                };
             }
             c
         })
@@ -827,10 +1013,8 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     if let Some(s) = best_single {
         if s.delta_bic > BIC_THRESHOLD && base.rss / s.rss >= MIN_RSS_RATIO {
             chosen = s.clone();
-            let best_pair = ranking
-                .iter()
-                .filter(|c| c.effects.len() == 2)
-                .max_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
+            let best_pair =
+                ranking.iter().filter(|c| c.effects.len() == 2).max_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
             // Any pair may replace the best single, but only by beating it on both rules.
             if let Some(p) = best_pair {
                 if dbic(s.rss, p.rss, 1) > BIC_THRESHOLD && s.rss / p.rss >= MIN_RSS_RATIO {
@@ -868,6 +1052,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         v.iter().sum::<f64>() / v.len().max(1) as f64
     };
     Ok(AuditOutcome {
+        source: data.source.clone(),
         cause,
         cause_effects: chosen.effects.clone(),
         nmse_per_trace: (per_trace(&base_preds), per_trace(&chosen_preds)),
@@ -892,7 +1077,19 @@ impl AuditOutcome {
         self.cause_effects.first().map_or(f64::NAN, |e| e.1)
     }
 
-    /// The `--json` document.
+    /// The `--json` document:
+    /// `{"cause", "magnitude", "uncertainty", "magnitudes", "causes", "nmse_base_pct",
+    /// "nmse_extended_pct", "nmse_ratio", "nmse_per_trace_base_pct", "nmse_per_trace_extended_pct",
+    /// "noise_sigma_bar", "ranking"}`.
+    ///
+    /// - one mechanism: `cause` is its name, `magnitude` a number in its unit;
+    /// - two: `cause` is `a+b` (names in [`Effect::ALL`] order, i.e. the issue's), `magnitude` and
+    ///   `uncertainty` are arrays in the same order;
+    /// - `none`: `magnitude` and `uncertainty` are `null`.
+    ///
+    /// `magnitudes` is always an array (empty for `none`) and `causes` lists
+    /// `{"name", "magnitude", "uncertainty", "unit"}` objects, so a reader need not branch.
+    /// The NMSEs are SPEC §6 against the mean measured trace of each configuration group.
     pub fn to_json(&self) -> String {
         let num = |v: f64| if v.is_finite() { format!("{v:.6}") } else { "null".to_owned() };
         let magnitude = match self.cause_effects.len() {
@@ -932,7 +1129,8 @@ impl AuditOutcome {
         format!(
             "{{\n  \"cause\": \"{}\",\n  \"magnitude\": {},\n  \"uncertainty\": {},\n  \"causes\": [{}],\n  \
              \"nmse_base_pct\": {},\n  \"nmse_extended_pct\": {},\n  \"nmse_ratio\": {},\n  \
-             \"noise_sigma_bar\": {},\n  \"ranking\": [\n    {}\n  ]\n}}\n",
+             \"nmse_per_trace_base_pct\": {},\n  \"nmse_per_trace_extended_pct\": {},\n  \
+             \"noise_sigma_bar\": {},\n  \"magnitudes\": [{}],\n  \"ranking\": [\n    {}\n  ]\n}}\n",
             self.cause,
             magnitude,
             match self.cause_effects.len() {
@@ -944,7 +1142,10 @@ impl AuditOutcome {
             num(self.base.nmse_pct),
             num(self.chosen.nmse_pct),
             num(self.base.nmse_pct / self.chosen.nmse_pct),
+            num(self.nmse_per_trace.0),
+            num(self.nmse_per_trace.1),
             num(self.diagnostics.sigma_trace_bar),
+            self.cause_effects.iter().map(|e| num(e.1)).collect::<Vec<_>>().join(", "),
             ranking
         )
     }
@@ -1033,13 +1234,25 @@ pub struct AuditArgs {
     /// Write residual and comparison plots (SVG) into this directory.
     #[arg(long)]
     pub plot: Option<PathBuf>,
-    /// Write a self-contained HTML report.
-    #[arg(long)]
-    pub report: Option<PathBuf>,
+    /// Write a self-contained HTML report (inline SVG) to this file; without a value to
+    /// `audit_report.html` in the `--plot` directory, or in the current directory.
+    #[arg(long, num_args = 0..=1, value_name = "FILE")]
+    pub report: Option<Option<PathBuf>>,
     /// Do not try pairs of mechanisms.
     #[arg(long)]
     pub no_pairs: bool,
 }
+
+/// The audit of a SPEC §7 data set directory with the default options: what the demo and other
+/// tools call (`write_outputs` then writes the files; `audit_plot::svgs` / `audit_plot::html_section`
+/// give the plots and the report body as strings for embedding).
+pub fn audit_dir(path: &Path) -> Result<AuditOutcome> {
+    let data = load_dataset(path)?;
+    audit(&data, AuditOptions::default())
+}
+
+/// Default file name of the HTML report.
+pub const REPORT_FILE: &str = "audit_report.html";
 
 /// `host-sim audit`.
 pub fn run(a: &AuditArgs) -> Result<()> {
@@ -1052,13 +1265,18 @@ pub fn run(a: &AuditArgs) -> Result<()> {
         data.groups.iter().map(|g| g.files.len()).sum::<usize>(),
         start.elapsed().as_secs_f64()
     );
-    write_outputs(&out, &data.source, a.json.as_deref(), a.plot.as_deref(), a.report.as_deref())
+    let report = a.report.as_ref().map(|r| match (r, &a.plot) {
+        (Some(file), _) => file.clone(),
+        (None, Some(dir)) => dir.join(REPORT_FILE),
+        (None, None) => PathBuf::from(REPORT_FILE),
+    });
+    write_outputs(&out, a.json.as_deref(), a.plot.as_deref(), report.as_deref())
 }
 
-/// Writes the JSON, plots and HTML report that were asked for.
+/// Writes the JSON verdict, the plots (`curves_N.svg`, `residual_N.svg` per configuration group,
+/// `acf.svg`) and the HTML report, each only when its path is given.
 pub fn write_outputs(
     out: &AuditOutcome,
-    source: &str,
     json: Option<&Path>,
     plot: Option<&Path>,
     report: Option<&Path>,
@@ -1068,14 +1286,13 @@ pub fn write_outputs(
     }
     if let Some(dir) = plot {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        for (i, c) in out.curves.iter().enumerate() {
-            std::fs::write(dir.join(format!("curves_{i}.svg")), crate::audit_plot::curves_svg(out, c)?)?;
-            std::fs::write(dir.join(format!("residual_{i}.svg")), crate::audit_plot::residual_svg(out, c)?)?;
+        for (name, svg) in crate::audit_plot::svgs(out)? {
+            let p = dir.join(name);
+            std::fs::write(&p, svg).with_context(|| format!("cannot write {}", p.display()))?;
         }
-        std::fs::write(dir.join("acf.svg"), crate::audit_plot::acf_svg(out)?)?;
     }
     if let Some(p) = report {
-        std::fs::write(p, crate::audit_plot::html_report(out, source)?)
+        std::fs::write(p, crate::audit_plot::html_report(out)?)
             .with_context(|| format!("cannot write {}", p.display()))?;
     }
     Ok(())

@@ -137,18 +137,39 @@ fn esc(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 
+/// Every plot as `(file name, SVG text)`: `curves_N.svg` and `residual_N.svg` per configuration
+/// group N, then `acf.svg`.
+pub fn svgs(out: &AuditOutcome) -> Result<Vec<(String, String)>> {
+    let mut v = Vec::new();
+    for (i, c) in out.curves.iter().enumerate() {
+        v.push((format!("curves_{i}.svg"), curves_svg(out, c)?));
+        v.push((format!("residual_{i}.svg"), residual_svg(out, c)?));
+    }
+    v.push(("acf.svg".to_owned(), acf_svg(out)?));
+    Ok(v)
+}
+
 /// A readable, self-contained HTML page (inline SVG, no external resources).
-pub fn html_report(out: &AuditOutcome, source: &str) -> Result<String> {
+pub fn html_report(out: &AuditOutcome) -> Result<String> {
+    Ok(format!(
+        "<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>Model-discrepancy audit</title>\
+         <style>body{{font-family:sans-serif;max-width:1050px;margin:auto}}table{{border-collapse:collapse}}\
+         td,th{{border:1px solid #bbb;padding:3px 8px;text-align:right}}th{{background:#eee}}\
+         td:first-child{{text-align:left}}</style></head><body>{}</body></html>\n",
+        html_section(out)?
+    ))
+}
+
+/// The report's body as one `<section>` (headings h2/h3, tables, inline SVG), for embedding in
+/// another page.
+pub fn html_section(out: &AuditOutcome) -> Result<String> {
     let d = &out.diagnostics;
     let mut h = String::new();
     let _ = write!(
         h,
-        "<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>Model-discrepancy audit</title>\
-         <style>body{{font-family:sans-serif;max-width:1050px;margin:auto}}table{{border-collapse:collapse}}\
-         td,th{{border:1px solid #bbb;padding:3px 8px;text-align:right}}th{{background:#eee}}\
-         td:first-child{{text-align:left}}</style></head><body>"
+        "<section class=\"audit\"><h2>Model-discrepancy audit</h2><p>Data: <code>{}</code></p>",
+        esc(&out.source)
     );
-    let _ = write!(h, "<h1>Model-discrepancy audit</h1><p>Data: <code>{}</code></p>", esc(source));
     let cause = if out.cause_effects.is_empty() {
         "<b>none</b>: no candidate mechanism explains the residual significantly".to_owned()
     } else {
@@ -160,7 +181,7 @@ pub fn html_report(out: &AuditOutcome, source: &str) -> Result<String> {
     };
     let _ = write!(
         h,
-        "<h2>Verdict</h2><p>Cause: {cause}.</p><p>NMSE (SPEC §6, mean measured trace) base <b>{:.3} %</b> → \
+        "<h3>Verdict</h3><p>Cause: {cause}.</p><p>NMSE (SPEC §6, mean measured trace) base <b>{:.3} %</b> → \
          extended <b>{:.3} %</b> (ratio {:.1}). Per trace: {:.3} % → {:.3} %.</p>",
         out.base.nmse_pct,
         out.chosen.nmse_pct,
@@ -170,7 +191,7 @@ pub fn html_report(out: &AuditOutcome, source: &str) -> Result<String> {
     );
     let _ = write!(
         h,
-        "<h2>What the base twin gets wrong</h2><p>Noise σ estimated from the data: {:.4} bar per trace, \
+        "<h3>What the base twin gets wrong</h3><p>Noise σ estimated from the data: {:.4} bar per trace, \
          {:.4} bar for the mean trace. Base RMS residual {:.4} bar. Ljung–Box Q(20) = {:.1} \
          (white noise below 31.4). Worst 1 s window at {:.0} s (RMS {:.4} bar). Largest \
          cross-correlation with the twin's pressure rate {:+.2} at lag {} samples.</p>",
@@ -195,7 +216,7 @@ pub fn html_report(out: &AuditOutcome, source: &str) -> Result<String> {
     let _ = write!(h, "</table>");
     let _ = write!(
         h,
-        "<h2>Candidates</h2><p>Each is the base twin plus the mechanism(s), all refitted. ΔBIC uses n_eff = {:.0} \
+        "<h3>Candidates</h3><p>Each is the base twin plus the mechanism(s), all refitted. ΔBIC uses n_eff = {:.0} \
          of n = {} samples (residual correlation); a cause needs ΔBIC &gt; 10 and an RSS cut ≥ 1.5×.</p>\
          <table><tr><th>model</th><th>ΔBIC</th><th>RSS base / model</th><th>NMSE</th><th>magnitudes (±1σ)</th></tr>",
         out.n_eff, out.n
@@ -217,15 +238,13 @@ pub fn html_report(out: &AuditOutcome, source: &str) -> Result<String> {
             esc(&m)
         );
     }
-    let _ = write!(h, "</table><h2>Curves</h2>");
+    let _ = write!(h, "</table><h3>Curves</h3>");
     for c in &out.curves {
         h.push_str(&curves_svg(out, c)?);
         h.push_str(&residual_svg(out, c)?);
     }
     h.push_str(&acf_svg(out)?);
-    let _ = write!(
-        h,
-        "<p>Red: base, blue: extended; green lines: phase boundaries (breakaway, end stop).</p></body></html>\n"
-    );
+    let _ =
+        write!(h, "<p>Red: base, blue: extended; green lines: phase boundaries (breakaway, end stop).</p></section>");
     Ok(h)
 }

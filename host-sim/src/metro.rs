@@ -13,14 +13,33 @@
 //!   measured `Oil_temperature` (the compressor's outlet temperature proxy), the reservoir wall
 //!   is at T0, and dp/dt = fill·Tc/T0·loaded − leak·p·√(T/T0) + p (T0 − T)/(T τ) with
 //!   dT/T = dp/p − dm/m (the brake twin's energy equation with V constant);
-//! - `transport_delay` (s): the loaded state takes effect this long after the COMP signal;
+//! - `transport_delay` (s): air reaches the reservoir this long after the compressor loads (the
+//!   outlet and dryer must first climb to reservoir pressure before the check valve opens);
+//!   unloading acts at once;
 //! - `valve_lag` (s): the compressor flow ramps up as 1 − e^(−t/τ) after loading;
 //! - `sensor_lag` (s), `sensor_offset` (bar), `sensor_gain` (ratio): the transducer;
 //! - `laminar_leak`: an extra leak ∝ gauge pressure, magnitude in **bar/min at 7 bar g** here
 //!   (the reservoir volume is unknown, so a mass flow in g/s is not identifiable).
 //!
 //! Loaded = `COMP` < 0.5 (MetroPT-3: COMP is the air-intake valve signal, active when the
-//! compressor does *not* take in air). The fit, the candidate ranking and the decision use the
+//! compressor does *not* take in air). COMP is sampled every ~10 s, so it is taken to switch at
+//! the midpoint between two rows, and the loaded time of a cycle is known only to about ± 10 s
+//! (± 0.2 bar of fill). Each phase is therefore simulated from the measured pressure at its start,
+//! like a brake release from its known start: a loading phase from the last row before it (gas
+//! at the wall temperature), a decay phase from its first row (gas at the temperature the
+//! loading left, which is what `heat_transfer` is about). Base and candidates share this.
+//!
+//! Candidates: the mechanisms above (the brake library's `regulator_droop`,
+//! `progressive_spring` and `gas_temperature` have no counterpart here: no regulator, no
+//! piston, and a supply temperature is a fill-rate scale). The model is the SPEC §2 chamber
+//! equation in f64, not the core's fixed-point brake twin (which is built around the piston).
+//!
+//! Result on `metropt3_head.csv` (bench/audit_metro.md): the adiabatic base misses the fast
+//! pressure drop in the first two minutes after each unloading and the slowing rise during
+//! loading; the audit names `heat_transfer+transport_delay` (τ ≈ 20 s, delay ≈ 9 s) and the
+//! NMSE falls from 0.96 % to 0.26 %.
+//!
+//! The fit, the candidate ranking and the decision use the
 //! same machinery and rules as the brake audit ([`crate::audit::levenberg_marquardt`], ΔBIC with
 //! n_eff and the [`crate::audit::BIC_THRESHOLD`] / [`crate::audit::MIN_RSS_RATIO`] rules).
 
@@ -207,7 +226,9 @@ fn base_values(u: &[f64]) -> (f64, f64) {
 fn simulate(rows: &[MetroRow], u: &[f64], ext: &MetroExt) -> Vec<f64> {
     let (fill, leak) = base_values(u);
     let t0 = TEMPERATURE_K;
-    let mut p = rows[0].tp3_bar - ext.offset + 1.0; // bar abs (initial state from the first reading)
+    // Chamber state from a reading, bar abs (inverse of the transducer map).
+    let from_reading = |reading: f64| (reading - ext.offset) / (1.0 + ext.gain_dev) + 1.0;
+    let mut p = from_reading(rows[0].tp3_bar);
     let mut temp = t0;
     let mut sensed = p - 1.0;
     let mut since_switch = 1e9;
@@ -216,23 +237,47 @@ fn simulate(rows: &[MetroRow], u: &[f64], ext: &MetroExt) -> Vec<f64> {
     let mut out = Vec::with_capacity(rows.len());
     let read = |sensed: f64| ext.offset + (1.0 + ext.gain_dev) * sensed;
     out.push(read(p - 1.0));
+    let mut was_loaded = rows[0].loaded;
     for w in rows.windows(2) {
         let (r, next) = (w[0], w[1]);
+        if next.loaded && !r.loaded {
+            // Each loading phase is simulated from the measured pressure just before it, with the
+            // gas settled at the wall temperature, like one brake release from its known start.
+            p = from_reading(r.tp3_bar);
+            temp = t0;
+            sensed = p - 1.0;
+            pending = None;
+            loaded_eff = false;
+        } else if was_loaded && !r.loaded {
+            // Each decay phase starts from the measured pressure at its first row, with the gas
+            // temperature the loading left: COMP is sampled every ~10 s, so the loaded time and
+            // with it the pressure at unloading are known only to ± 0.2 bar, an offset that would
+            // otherwise sit on the whole 30 min decay and swamp every mechanism.
+            p = from_reading(r.tp3_bar);
+            sensed = p - 1.0;
+        }
+        was_loaded = r.loaded;
         let dt = next.t_s - r.t_s;
         let n = (dt / SUBSTEP_S).ceil().max(1.0) as usize;
         let h = dt / n as f64;
         let tc = r.oil_c + 273.15;
-        for _ in 0..n {
-            // Loaded state through the delay line.
-            if r.loaded != pending.map_or(loaded_eff, |(_, s)| s) {
-                pending = Some((0.0, r.loaded));
+        for k in 0..n {
+            // COMP is sampled every ~10 s: it switched somewhere between two rows, at the
+            // midpoint on average.
+            let command = if (k as f64 + 0.5) * h < 0.5 * dt { r.loaded } else { next.loaded };
+            // Loading reaches the reservoir only once the compressor outlet has climbed to
+            // reservoir pressure (check valve): the delay applies to loading; unloading is
+            // immediate.
+            let delay = if command { ext.delay_s } else { 0.0 };
+            if command != pending.map_or(loaded_eff, |(_, s)| s) {
+                pending = Some((0.0, command));
             }
             // Share of this substep after a switch (continuous in the delay).
             let previous = loaded_eff;
             let mut new_share = 1.0;
             if let Some((t, s)) = pending {
-                if t + h >= ext.delay_s {
-                    new_share = ((t + h - ext.delay_s) / h).clamp(0.0, 1.0);
+                if t + h >= delay {
+                    new_share = ((t + h - delay) / h).clamp(0.0, 1.0);
                     loaded_eff = s;
                     since_switch = 0.0;
                     pending = None;
@@ -271,13 +316,14 @@ fn simulate(rows: &[MetroRow], u: &[f64], ext: &MetroExt) -> Vec<f64> {
 /// Options of `host-sim audit-metro`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct MetroArgs {
-    /// The MetroPT-3 CSV extract.
-    #[arg(long, default_value = DEFAULT_PATH)]
+    /// The MetroPT-3 CSV extract (SPEC §8).
+    #[arg(default_value = DEFAULT_PATH)]
     pub path: PathBuf,
-    /// Write the verdict as JSON.
+    /// Write the verdict as JSON (same keys as `host-sim audit --json`).
     #[arg(long)]
     pub json: Option<PathBuf>,
-    /// Write measured vs base vs extended (SVG).
+    /// Plots: a `.svg` file (measured vs adiabatic vs extended), or a directory that receives
+    /// `metro_curves.svg` and `metro_residual.svg`.
     #[arg(long)]
     pub plot: Option<PathBuf>,
 }
@@ -494,77 +540,138 @@ impl MetroOutcome {
                 format!(r#"{{"name": "{}", "delta_bic": {:.3}, "nmse_pct": {:.6}}}"#, c.name, c.delta_bic, c.nmse_pct)
             })
             .collect();
+        let causes: Vec<String> = self
+            .chosen
+            .effects
+            .iter()
+            .map(|(e, v)| format!(r#"{{"name": "{}", "magnitude": {v:.6}, "unit": "{}"}}"#, e.name(), e.unit()))
+            .collect();
         format!(
-            "{{\n  \"cause\": \"{}\",\n  \"magnitude\": {},\n  \"nmse_base_pct\": {:.6},\n  \"nmse_extended_pct\": {:.6},\n  \"ranking\": [\n    {}\n  ]\n}}\n",
+            "{{\n  \"cause\": \"{}\",\n  \"magnitude\": {},\n  \"magnitudes\": [{}],\n  \"causes\": [{}],\n  \
+             \"nmse_base_pct\": {:.6},\n  \"nmse_extended_pct\": {:.6},\n  \"nmse_ratio\": {:.6},\n  \
+             \"noise_sigma_bar\": {:.6},\n  \"ranking\": [\n    {}\n  ]\n}}\n",
             self.cause,
             magnitude,
+            mags.join(", "),
+            causes.join(", "),
             self.base.nmse_pct,
             self.chosen.nmse_pct,
+            self.base.nmse_pct / self.chosen.nmse_pct,
+            self.sigma,
             ranking.join(",\n    ")
         )
     }
 }
 
-fn plot(path: &Path, rows: &[MetroRow], out: &MetroOutcome) -> Result<()> {
+fn plot_err<E: std::fmt::Display>(err: E) -> anyhow::Error {
+    anyhow::anyhow!("metro plot: {err}")
+}
+
+/// Measured TP3 vs the adiabatic base and the extended model over the whole extract (SVG text).
+pub fn curves_svg(rows: &[MetroRow], out: &MetroOutcome) -> Result<String> {
     use plotters::prelude::*;
-    let e = |err: &dyn std::fmt::Display| anyhow::anyhow!("plot {}: {err}", path.display());
-    let root = SVGBackend::new(path, (1100, 520)).into_drawing_area();
-    root.fill(&WHITE).map_err(|x| e(&x))?;
-    let t_end = rows.last().map_or(1.0, |r| r.t_s / 60.0);
-    let mut chart = ChartBuilder::on(&root)
-        .caption(format!("MetroPT-3 TP3: measured vs adiabatic vs {}", out.cause), ("sans-serif", 18))
-        .margin(10)
-        .x_label_area_size(30)
-        .y_label_area_size(50)
-        .build_cartesian_2d(0.0..t_end, 7.8..10.4)
-        .map_err(|x| e(&x))?;
-    chart.configure_mesh().x_desc("t, min").y_desc("TP3, bar").draw().map_err(|x| e(&x))?;
-    let series = |y: &[f64]| rows.iter().zip(y).map(|(r, &v)| (r.t_s / 60.0, v)).collect::<Vec<_>>();
-    let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
-    for (name, y, color) in [
-        ("measured", &measured, BLACK),
-        ("adiabatic base", &out.base.curve, RED),
-        ("extended", &out.chosen.curve, BLUE),
-    ] {
-        chart
-            .draw_series(LineSeries::new(series(y), color))
-            .map_err(|x| e(&x))?
-            .label(name)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+    let e = plot_err;
+    let mut buf = String::new();
+    {
+        let root = SVGBackend::with_string(&mut buf, (1100, 520)).into_drawing_area();
+        root.fill(&WHITE).map_err(e)?;
+        let t_end = rows.last().map_or(1.0, |r| r.t_s / 60.0);
+        let mut chart = ChartBuilder::on(&root)
+            .caption(format!("MetroPT-3 TP3: measured vs adiabatic vs {}", out.cause), ("sans-serif", 18))
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(50)
+            .build_cartesian_2d(0.0..t_end, 7.8..10.4)
+            .map_err(e)?;
+        chart.configure_mesh().x_desc("t, min").y_desc("TP3, bar").draw().map_err(e)?;
+        let series = |y: &[f64]| rows.iter().zip(y).map(|(r, &v)| (r.t_s / 60.0, v)).collect::<Vec<_>>();
+        let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
+        for (name, y, color) in [
+            ("measured", &measured, BLACK),
+            ("adiabatic base", &out.base.curve, RED),
+            ("extended", &out.chosen.curve, BLUE),
+        ] {
+            chart
+                .draw_series(LineSeries::new(series(y), color))
+                .map_err(e)?
+                .label(name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+        }
+        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(e)?;
+        root.present().map_err(e)?;
     }
-    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|x| e(&x))?;
-    root.present().map_err(|x| e(&x))?;
+    Ok(buf)
+}
+
+/// Residual (measured − model) of the base and the extended model against time (SVG text).
+pub fn residual_svg(rows: &[MetroRow], out: &MetroOutcome) -> Result<String> {
+    use plotters::prelude::*;
+    let e = plot_err;
+    let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
+    let rb: Vec<f64> = measured.iter().zip(&out.base.curve).map(|(m, b)| m - b).collect();
+    let re: Vec<f64> = measured.iter().zip(&out.chosen.curve).map(|(m, b)| m - b).collect();
+    let lim = rb.iter().chain(&re).fold(0.05f64, |a, v| a.max(v.abs())) * 1.1;
+    let mut buf = String::new();
+    {
+        let root = SVGBackend::with_string(&mut buf, (1100, 400)).into_drawing_area();
+        root.fill(&WHITE).map_err(e)?;
+        let t_end = rows.last().map_or(1.0, |r| r.t_s / 60.0);
+        let mut chart = ChartBuilder::on(&root)
+            .caption("MetroPT-3 TP3 residual, measured − model", ("sans-serif", 18))
+            .margin(10)
+            .x_label_area_size(30)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..t_end, -lim..lim)
+            .map_err(e)?;
+        chart.configure_mesh().x_desc("t, min").y_desc("residual, bar").draw().map_err(e)?;
+        for (name, y, color) in [("adiabatic base", &rb, RED), ("extended", &re, BLUE)] {
+            let pts = rows.iter().zip(y.iter()).map(|(r, &v)| (r.t_s / 60.0, v)).collect::<Vec<_>>();
+            chart
+                .draw_series(LineSeries::new(pts, color))
+                .map_err(e)?
+                .label(name)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+        }
+        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(e)?;
+        root.present().map_err(e)?;
+    }
+    Ok(buf)
+}
+
+/// Reads the extract and runs the metro audit (for the demo and other tools).
+pub fn audit_metro_file(path: &Path) -> Result<(Vec<MetroRow>, MetroOutcome)> {
+    let rows = read_metro(path)?;
+    let out = audit_metro(&rows)?;
+    Ok((rows, out))
+}
+
+/// Writes the JSON verdict and the plots (see [`MetroArgs::plot`]) that were asked for.
+pub fn write_metro_outputs(
+    rows: &[MetroRow],
+    out: &MetroOutcome,
+    json: Option<&Path>,
+    plot: Option<&Path>,
+) -> Result<()> {
+    if let Some(p) = json {
+        std::fs::write(p, out.to_json()).with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    if let Some(p) = plot {
+        let write =
+            |p: &Path, svg: String| std::fs::write(p, svg).with_context(|| format!("cannot write {}", p.display()));
+        if p.extension().is_some_and(|x| x.eq_ignore_ascii_case("svg")) {
+            write(p, curves_svg(rows, out)?)?;
+        } else {
+            std::fs::create_dir_all(p).with_context(|| format!("cannot create {}", p.display()))?;
+            write(&p.join("metro_curves.svg"), curves_svg(rows, out)?)?;
+            write(&p.join("metro_residual.svg"), residual_svg(rows, out)?)?;
+        }
+    }
     Ok(())
 }
 
 /// `host-sim audit-metro`.
 pub fn run(a: &MetroArgs) -> Result<()> {
-    let rows = read_metro(&a.path)?;
-    let out = audit_metro(&rows)?;
+    let (rows, out) = audit_metro_file(&a.path)?;
     print!("{}", out.summary());
-    if std::env::var_os("METRO_DEBUG").is_some() {
-        let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
-        for d in [0.0, 2.0, 5.0, 10.0, 15.0] {
-            for fill_u in [0.3, 0.35, 0.4] {
-                let mut ext = MetroExt::default();
-                ext.delay_s = d;
-                let m = simulate(&rows, &[fill_u, 0.5], &ext);
-                let rss: f64 = m.iter().zip(&measured).map(|(a, b)| (a - b) * (a - b)).sum();
-                eprintln!("delay {d} fill_u {fill_u}: rss {rss:.4}");
-            }
-        }
-        for (i, r) in rows.iter().enumerate().skip(130).take(60) {
-            eprintln!(
-                "{i} {:.0} {} {:.3} {:.3} {:.3}",
-                r.t_s, r.loaded, r.tp3_bar, out.base.curve[i], out.chosen.curve[i]
-            );
-        }
-    }
-    if let Some(p) = &a.json {
-        std::fs::write(p, out.to_json()).with_context(|| format!("cannot write {}", p.display()))?;
-    }
-    if let Some(p) = &a.plot {
-        plot(p, &rows, &out)?;
-    }
-    Ok(())
+    write_metro_outputs(&rows, &out, a.json.as_deref(), a.plot.as_deref())
 }
