@@ -267,7 +267,8 @@ impl ReferenceTwin {
 fn piston_step(q: &TwinParams, s: &ReferenceState, h: f64, progressive: f64) -> (f64, f64, f64) {
     let l = q.stroke.0;
     let g = q.coulomb_n + (q.static_n - q.coulomb_n) * (-(s.v / q.stribeck_m_per_s).powi(2)).exp();
-    let zdot_nl_per_v = q.sigma0_n_per_m * s.z / g; // dz/dt = v − |v| · this
+    // dz/dt = v − |v| · zdot_nl_per_v
+    let zdot_nl_per_v = q.sigma0_n_per_m * s.z / g;
     // With β = 0 the factor is exactly 1.0, so the base spring is F0 + K x to the last bit.
     let f_ext = (s.p - P0) * q.piston_area_m2
         - q.preload_n
