@@ -1,6 +1,7 @@
 //! Plots (SVG, plotters) and the self-contained HTML page of `host-sim audit`.
 
 use crate::audit::{AuditOutcome, CurveSet};
+use crate::chart::draw_labelled_lines;
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use std::fmt::Write as _;
@@ -41,22 +42,15 @@ pub fn curves_svg(out: &AuditOutcome, c: &CurveSet) -> Result<String> {
             .build_cartesian_2d(0.0..t_end, span(&[&c.measured, &c.base, &c.extended], 0.5))
             .map_err(e)?;
         chart.configure_mesh().x_desc("t, s").y_desc("pressure, bar g").draw().map_err(e)?;
-        for (name, y, color) in
-            [("measured (mean)", &c.measured, BLACK), ("base twin", &c.base, RED), ("extended twin", &c.extended, BLUE)]
-        {
-            chart
-                .draw_series(LineSeries::new(points(y), color))
-                .map_err(e)?
-                .label(name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
-        }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(e)?;
+        draw_labelled_lines(
+            &mut chart,
+            [
+                ("measured (mean)", points(&c.measured), BLACK),
+                ("base twin", points(&c.base), RED),
+                ("extended twin", points(&c.extended), BLUE),
+            ],
+            SeriesLabelPosition::LowerRight,
+        )?;
         root.present().map_err(e)?;
     }
     Ok(buf)
@@ -88,14 +82,11 @@ pub fn residual_svg(out: &AuditOutcome, c: &CurveSet) -> Result<String> {
             let t = idx as f64 * 0.01;
             chart.draw_series(LineSeries::new(vec![(t, yr.start), (t, yr.end)], GREEN.mix(0.6))).map_err(e)?;
         }
-        for (name, y, color) in [("base", &rb, RED), ("extended", &re, BLUE)] {
-            chart
-                .draw_series(LineSeries::new(points(y), color))
-                .map_err(e)?
-                .label(name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
-        }
-        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(e)?;
+        draw_labelled_lines(
+            &mut chart,
+            [("base", points(&rb), RED), ("extended", points(&re), BLUE)],
+            SeriesLabelPosition::MiddleRight,
+        )?;
         root.present().map_err(e)?;
     }
     Ok(buf)

@@ -87,3 +87,32 @@ pub fn write_line_chart(path: &Path, labels: ChartLabels<'_>, series: &[Series<'
     root.present().map_err(|e| err(&e))?;
     Ok(())
 }
+
+/// Draws each `(label, points, colour)` as a labelled line on an f64 × f64 chart, then the
+/// legend box at `position`: the one way the audit and metro plots draw their curves.
+pub fn draw_labelled_lines<'a, DB: DrawingBackend + 'a>(
+    chart: &mut ChartContext<
+        'a,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    lines: impl IntoIterator<Item = (&'static str, Vec<(f64, f64)>, RGBColor)>,
+    position: SeriesLabelPosition,
+) -> Result<()> {
+    let err = |e: &dyn std::fmt::Display| anyhow!("chart: {e}");
+    for (label, points, color) in lines {
+        chart
+            .draw_series(LineSeries::new(points, color))
+            .map_err(|e| err(&e))?
+            .label(label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+    }
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| err(&e))?;
+    Ok(())
+}

@@ -586,18 +586,15 @@ pub fn curves_svg(rows: &[MetroRow], out: &MetroOutcome) -> Result<String> {
         chart.configure_mesh().x_desc("t, min").y_desc("TP3, bar").draw().map_err(e)?;
         let series = |y: &[f64]| rows.iter().zip(y).map(|(r, &v)| (r.t_s / 60.0, v)).collect::<Vec<_>>();
         let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
-        for (name, y, color) in [
-            ("measured", &measured, BLACK),
-            ("adiabatic base", &out.base.curve, RED),
-            ("extended", &out.chosen.curve, BLUE),
-        ] {
-            chart
-                .draw_series(LineSeries::new(series(y), color))
-                .map_err(e)?
-                .label(name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
-        }
-        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(e)?;
+        crate::chart::draw_labelled_lines(
+            &mut chart,
+            [
+                ("measured", series(&measured), BLACK),
+                ("adiabatic base", series(&out.base.curve), RED),
+                ("extended", series(&out.chosen.curve), BLUE),
+            ],
+            SeriesLabelPosition::MiddleRight,
+        )?;
         root.present().map_err(e)?;
     }
     Ok(buf)
@@ -624,15 +621,12 @@ pub fn residual_svg(rows: &[MetroRow], out: &MetroOutcome) -> Result<String> {
             .build_cartesian_2d(0.0..t_end, -lim..lim)
             .map_err(e)?;
         chart.configure_mesh().x_desc("t, min").y_desc("residual, bar").draw().map_err(e)?;
-        for (name, y, color) in [("adiabatic base", &rb, RED), ("extended", &re, BLUE)] {
-            let pts = rows.iter().zip(y.iter()).map(|(r, &v)| (r.t_s / 60.0, v)).collect::<Vec<_>>();
-            chart
-                .draw_series(LineSeries::new(pts, color))
-                .map_err(e)?
-                .label(name)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
-        }
-        chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(e)?;
+        let series = |y: &[f64]| rows.iter().zip(y).map(|(r, &v)| (r.t_s / 60.0, v)).collect::<Vec<_>>();
+        crate::chart::draw_labelled_lines(
+            &mut chart,
+            [("adiabatic base", series(&rb), RED), ("extended", series(&re), BLUE)],
+            SeriesLabelPosition::MiddleRight,
+        )?;
         root.present().map_err(e)?;
     }
     Ok(buf)
