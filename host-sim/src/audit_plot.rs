@@ -7,16 +7,7 @@ use plotters::prelude::*;
 use std::fmt::Write as _;
 
 fn span(values: &[&[f64]], min_span: f64) -> std::ops::Range<f64> {
-    let (lo, hi) = values
-        .iter()
-        .flat_map(|v| v.iter())
-        .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
-    if !(lo.is_finite() && hi.is_finite()) {
-        return -min_span..min_span;
-    }
-    let pad = ((hi - lo) * 0.05).max(min_span * 0.5);
-    (lo - pad)..(hi + pad)
+    crate::plot::range(values.iter().flat_map(|v| v.iter()), min_span)
 }
 
 fn points(y: &[f64]) -> Vec<(f64, f64)> {

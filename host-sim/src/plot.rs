@@ -20,9 +20,11 @@ pub struct ReplayPlot<'a> {
     pub residual_bar: &'a [f64],
 }
 
-fn range(values: &[f64], min_span: f64) -> std::ops::Range<f64> {
+/// Axis range over the finite values, padded by 5 % (at least `min_span / 2` each side);
+/// `±min_span` when there is no finite value.
+pub fn range<'a>(values: impl IntoIterator<Item = &'a f64>, min_span: f64) -> std::ops::Range<f64> {
     let (lo, hi) = values
-        .iter()
+        .into_iter()
         .filter(|v| v.is_finite())
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &v| (lo.min(v), hi.max(v)));
     if !(lo.is_finite() && hi.is_finite()) {
