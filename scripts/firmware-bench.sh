@@ -143,6 +143,7 @@ codegen-units 1, panic = abort.
 | of which online estimator (\`ReleaseEstimator::update\`, f32 RLS), mean / worst | $(get estimator_instr_per_sample_mean) / $EST_MAX instr | | |
 | of which release features (\`ReleaseFeatures::update\`, f32), mean / worst | $FEAT / $FEAT_MAX instr | | |
 | **per classification** (\`classifier::diagnose\`, int8 network, once per release) | $CLASSIFY instr | | |
+| MetroPT-3 reservoir model (\`reservoir::Reservoir::update\` with heat transfer + transport delay, one 0.5 s substep; bench binary only), mean / worst | $(get reservoir_instr_per_substep_mean) / $(get reservoir_instr_per_substep_max) instr | | |
 | the sample that closes a diagnosis (step + classification + report frame) | $CLOSING instr | < 250000 (10 ms at 25 MHz) | $(verdict "$CLOSING" 250000) |
 | **flash**, \`monitor\` app (text + rodata + data, without the $TRACE_BYTES-byte test trace) | $FLASH B | ≤ $TARGET_FLASH | $(verdict "$FLASH" $TARGET_FLASH) |
 | flash including the test trace | $FLASH_TOTAL B | | |

@@ -11,6 +11,8 @@
 //! - [`metrics`]: NMSE (SPEC §6).
 //! - [`monitor`]: the per-sample pipeline (ADC in, reports out).
 //! - [`report`]: fault and status reports, independent of the CAN layout.
+//! - [`reservoir`]: a compressor-fed air reservoir built from the twin's pieces (the model of
+//!   the real MetroPT-3 data, SPEC §8).
 //! - [`can`]: CAN frames to the cab display (DBC layout, E2E, encoder, decoder, schedule).
 //! - [`pipeline`]: the whole per-sample path (monitor, diagnosis policy, CAN schedule) and the
 //!   candump log format, shared by the firmware and `host-sim replay --can-log`.
@@ -32,6 +34,7 @@ pub mod monitor;
 pub mod params;
 pub mod pipeline;
 pub mod report;
+pub mod reservoir;
 pub mod sensor;
 pub mod twin;
 pub mod units;
@@ -39,4 +42,4 @@ pub mod units;
 pub use fault::FaultClass;
 pub use params::{ParamError, TwinParams};
 pub use twin::{Twin, TwinSample};
-pub use units::{AdcCounts, BarG, Meters, PressureQ24, Seconds};
+pub use units::{AdcCounts, BarG, KelvinQ8, Meters, PressureQ24, Seconds};

@@ -161,15 +161,20 @@ impl Extensions {
             (self.laminar_leak_g_per_s, 0.0, 20.0),
             (self.gas_temperature_k, 0.0, 500.0),
         ];
-        for (value, lo, hi) in checks {
-            if !(value >= lo && value <= hi) {
-                return Err(ParamError::Extension);
-            }
-        }
+        within(&checks, ParamError::Extension)?;
         if self.gas_temperature_k != 0.0 && self.gas_temperature_k < 150.0 {
             return Err(ParamError::Extension);
         }
         Ok(())
+    }
+}
+
+/// `Ok` when every `(value, lo, hi)` has a value in `lo..=hi` (so not NaN), else `err`.
+pub(crate) fn within(checks: &[(f64, f64, f64)], err: ParamError) -> Result<(), ParamError> {
+    if checks.iter().all(|&(value, lo, hi)| value >= lo && value <= hi) {
+        Ok(())
+    } else {
+        Err(err)
     }
 }
 
@@ -291,8 +296,11 @@ pub enum ParamError {
     Spring,
     /// A friction parameter out of range (or Fs < Fc).
     Friction,
-    /// An extension magnitude out of range (see [`Extensions::validate`]).
+    /// An extension magnitude out of range (see [`Extensions::validate`]), or a mechanism the
+    /// model does not have (see [`crate::reservoir::ReservoirParams::validate`]).
     Extension,
+    /// A reservoir model parameter out of range (see [`crate::reservoir::ReservoirParams`]).
+    Reservoir,
 }
 
 impl core::fmt::Display for ParamError {
@@ -308,7 +316,11 @@ impl core::fmt::Display for ParamError {
             Self::Mass => "moving mass must be 0.5..=500 kg",
             Self::Spring => "spring preload (0..=60 kN) or rate (0..=4e6 N/m) out of range",
             Self::Friction => "friction parameter out of range (or static < Coulomb)",
-            Self::Extension => "extension magnitude out of range",
+            Self::Extension => "extension magnitude out of range or not supported by this model",
+            Self::Reservoir => {
+                "reservoir volume (0.01..=10 m³), compressor flow (0..=200 g/s), outlet orifice \
+                 (0..=20 mm, stable at the 0.5 s step) or discharge coefficient (0.05..=1) out of range"
+            }
         };
         f.write_str(what)
     }

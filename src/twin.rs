@@ -38,6 +38,10 @@
 //! [`SUBSTEPS`] pressure substeps per sample (the piston part is still skipped while held), and
 //! [`TwinSample::pressure`] is what the *transducer* reads (lag, then `offset + gain · p`), so
 //! the monitor compares like with like. Q formats of the extension terms are in [`ExtCoeffs`].
+//!
+//! The valve line ([`ValveLine`], [`LineCoeffs`]), the transducer ([`SensorCoeffs`]), the vents
+//! ([`vent_increments_q40`]) and the chamber's pressure/temperature step ([`chamber_substep`])
+//! are public pieces: [`crate::reservoir`] assembles its compressor-fed reservoir from them.
 
 use crate::fixed::{rshr, sat_i32, to_q_i32, to_q_i64};
 use crate::params::{c1, circle_area, Extensions, ParamError, TwinParams, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
@@ -111,30 +115,21 @@ pub struct TwinCoeffs {
 ///
 /// | field | format | meaning |
 /// |---|---|---|
-/// | `delay_q16` | Q16 | transport delay in substeps |
-/// | `lag_keep_q30`, `lag_gap_avg_q30` | Q30 | valve lag: e^(−h/τ) and the mean of the closing gap over a substep |
+/// | `line` | see [`LineCoeffs`] | transport delay and valve lag |
 /// | `heat_rate_q30` | Q30 | h/τ of the gas-to-wall heat transfer (0 = off) |
 /// | `sqrt_theta_s_q24`, `inv_sqrt_theta_s_q24` | Q24 | sqrt(T_supply/T_wall) and its inverse |
-/// | `sensor_keep_q30`, `sensor_ramp_q30` | Q30 | transducer lag e^(−h/τ) and τ/h (1 − e^(−h/τ)) |
-/// | `sensor_offset_q24`, `sensor_gain_q24` | Q24 | bar, ratio |
+/// | `sensor` | see [`SensorCoeffs`] | transducer lag, offset and gain |
 /// | `droop_q24`, `droop_ref_q40` | Q24 bar, Q40 bar/substep | supply sag and the nominal orifice's choked increment |
 /// | `spring_quad_q4` | Q4 | K β / L, N/m² |
 /// | `laminar_q40` | Q40 | pressure increment per substep per bar g at V0 |
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ExtCoeffs {
     active: bool,
-    delay_q16: i64,
-    valve_lag: bool,
-    lag_keep_q30: i64,
-    lag_gap_avg_q30: i64,
+    line: LineCoeffs,
     heat_rate_q30: i64,
     sqrt_theta_s_q24: i64,
     inv_sqrt_theta_s_q24: i64,
-    sensor_lag: bool,
-    sensor_keep_q30: i64,
-    sensor_ramp_q30: i64,
-    sensor_offset_q24: i64,
-    sensor_gain_q24: i64,
+    sensor: SensorCoeffs,
     droop_q24: i64,
     droop_ref_q40: i64,
     spring_quad_q4: i64,
@@ -142,9 +137,194 @@ pub struct ExtCoeffs {
 }
 
 impl ExtCoeffs {
+    /// Every mechanism off.
+    const NONE: Self = Self {
+        active: false,
+        line: LineCoeffs::NONE,
+        heat_rate_q30: 0,
+        sqrt_theta_s_q24: 0,
+        inv_sqrt_theta_s_q24: 0,
+        sensor: SensorCoeffs::IDEAL,
+        droop_q24: 0,
+        droop_ref_q40: 0,
+        spring_quad_q4: 0,
+        laminar_q40: 0,
+    };
+
     /// True when any mechanism is on (the twin then takes the extended path).
     pub fn active(&self) -> bool {
         self.active
+    }
+}
+
+/// Integer coefficients of a valve path with a transport delay and an opening lag, per substep
+/// of length h (shared by the brake twin and the [`crate::reservoir`] model).
+///
+/// | field | format | meaning |
+/// |---|---|---|
+/// | `delay_q16` | Q16 | transport delay in substeps |
+/// | `lag_keep_q30`, `lag_gap_avg_q30` | Q30 | valve lag: e^(−h/τ) and the mean of the closing gap over a substep |
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct LineCoeffs {
+    delay_q16: i64,
+    lag_keep_q30: i64,
+    /// Non-zero exactly when the valve lags (no separate flag: it would pad the twin's
+    /// coefficients, which the firmware keeps in RAM and flash).
+    lag_gap_avg_q30: i64,
+}
+
+impl LineCoeffs {
+    /// No delay, no lag.
+    pub const NONE: Self = Self { delay_q16: 0, lag_keep_q30: 0, lag_gap_avg_q30: 0 };
+
+    /// From a transport delay and an opening time constant (s, 0 = none) at substep `h_s`.
+    pub fn new(delay_s: f64, lag_s: f64, h_s: f64) -> Self {
+        let keep = if lag_s > 0.0 { libm::exp(-h_s / lag_s) } else { 0.0 };
+        Self {
+            delay_q16: to_q_i64(delay_s / h_s, 16),
+            lag_keep_q30: to_q_i64(keep, 30),
+            lag_gap_avg_q30: if lag_s > 0.0 { to_q_i64(lag_s / h_s * (1.0 - keep), 30).max(1) } else { 0 },
+        }
+    }
+
+    /// True when the valve opens with a lag.
+    pub fn lags(&self) -> bool {
+        self.lag_gap_avg_q30 != 0
+    }
+
+    /// The transport delay, Q16 substeps.
+    pub fn delay_q16(&self) -> i64 {
+        self.delay_q16
+    }
+}
+
+/// State of a valve path ([`LineCoeffs`]): the command given, the position the chamber sees.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ValveLine {
+    /// Last valve command given.
+    pub command: bool,
+    /// Valve position the chamber sees (the command after the transport delay).
+    pub effective: bool,
+    /// A command change is travelling down the line.
+    pub pending: bool,
+    /// Time since the last command change, substeps, Q16.
+    pub elapsed_q16: i64,
+    /// Opening area fraction of the effective valve path still closed (valve lag), Q30.
+    pub gap_q30: i64,
+}
+
+/// One of at most two valve positions seen during a substep and its open area share.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct LinePath {
+    /// Valve open (connected to the source).
+    pub open: bool,
+    /// Share of the substep times the open area fraction, Q30.
+    pub share_q30: i64,
+}
+
+impl ValveLine {
+    /// Closed for long, nothing travelling.
+    pub const CLOSED: Self = Self { command: false, effective: false, pending: false, elapsed_q16: 0, gap_q30: 0 };
+
+    /// Gives a command; a change starts travelling down the line.
+    pub fn command(&mut self, open: bool) {
+        if open != self.command {
+            self.command = open;
+            self.pending = true;
+            self.elapsed_q16 = 0;
+        }
+    }
+
+    /// Advances one substep with transport delay `delay_q16` (Q16 substeps; a caller may make
+    /// it depend on the direction of the change). The command reaches the chamber `delay` after
+    /// it is given, possibly inside this substep: the part after the switch then uses the new
+    /// path, so the result is continuous in the delay. Returns the (up to two) positions seen.
+    pub fn substep(&mut self, c: &LineCoeffs, delay_q16: i64) -> [LinePath; 2] {
+        const FULL_Q16: i64 = 1 << 16;
+        const ONE_Q30: i64 = 1 << 30;
+        let old_effective = self.effective;
+        let old_open_q30 = ONE_Q30 - (self.gap_q30 * c.lag_gap_avg_q30 >> 30);
+        let mut new_share_q16 = 0;
+        if self.pending {
+            self.elapsed_q16 += FULL_Q16;
+            if self.elapsed_q16 > delay_q16 {
+                new_share_q16 = (self.elapsed_q16 - delay_q16).min(FULL_Q16);
+                self.pending = false;
+                self.effective = self.command;
+                self.gap_q30 = if c.lags() { ONE_Q30 } else { 0 };
+            }
+        }
+        let new_open_q30 = ONE_Q30 - (self.gap_q30 * c.lag_gap_avg_q30 >> 30);
+        let paths = if new_share_q16 > 0 {
+            [
+                LinePath { open: old_effective, share_q30: old_open_q30 * (FULL_Q16 - new_share_q16) >> 16 },
+                LinePath { open: self.effective, share_q30: new_open_q30 * new_share_q16 >> 16 },
+            ]
+        } else {
+            [LinePath { open: self.effective, share_q30: old_open_q30 }, LinePath { open: false, share_q30: 0 }]
+        };
+        if c.lags() {
+            self.gap_q30 = self.gap_q30 * c.lag_keep_q30 >> 30;
+        }
+        paths
+    }
+}
+
+/// Integer coefficients of the pressure transducer: first-order lag, then `offset + gain · p`
+/// on the gauge pressure (shared by the brake twin and the [`crate::reservoir`] model).
+///
+/// | field | format | meaning |
+/// |---|---|---|
+/// | `keep_q30`, `ramp_q30` | Q30 | lag e^(−h/τ) and τ/h (1 − e^(−h/τ)) |
+/// | `offset_q24`, `gain_q24` | Q24 | bar, ratio |
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct SensorCoeffs {
+    keep_q30: i64,
+    /// Non-zero exactly when the transducer lags (see [`LineCoeffs`] on flags).
+    ramp_q30: i64,
+    offset_q24: i64,
+    gain_q24: i64,
+}
+
+impl SensorCoeffs {
+    /// The coefficients of the brake twin without sensor terms (gain field unused there).
+    const IDEAL: Self = Self { keep_q30: 0, ramp_q30: 0, offset_q24: 0, gain_q24: 0 };
+
+    /// From a lag time constant (s, 0 = none), an offset (bar) and a gain at substep `h_s`.
+    pub fn new(lag_s: f64, offset_bar: f64, gain: f64, h_s: f64) -> Self {
+        let keep = if lag_s > 0.0 { libm::exp(-h_s / lag_s) } else { 0.0 };
+        Self {
+            keep_q30: to_q_i64(keep, 30),
+            ramp_q30: if lag_s > 0.0 { to_q_i64(lag_s / h_s * (1.0 - keep), 30).max(1) } else { 0 },
+            offset_q24: to_q_i64(offset_bar, 24),
+            gain_q24: to_q_i64(gain, 24),
+        }
+    }
+
+    /// True when the transducer lags.
+    pub fn lags(&self) -> bool {
+        self.ramp_q30 != 0
+    }
+
+    /// Transducer state after one substep in which the pressure ramped from `p_start_q24` to
+    /// `p_end_q24` (exact first-order response to the ramp), all Q24 bar abs.
+    pub fn lag_substep(&self, sensed_q24: i64, p_start_q24: i64, p_end_q24: i64) -> i64 {
+        let ramp = (p_end_q24 - p_start_q24) * self.ramp_q30 >> 30;
+        p_end_q24 - ramp + ((sensed_q24 - p_start_q24) * self.keep_q30 >> 30)
+    }
+
+    /// What the transducer reads (Q24 bar abs) for the (lagged) pressure `p_q24`.
+    pub fn read(&self, p_q24: i64) -> PressureQ24 {
+        let one = i64::from(PressureQ24::ONE_BAR);
+        PressureQ24(sat_i32(one + self.offset_q24 + ((p_q24 - one) * self.gain_q24 >> 24)))
+    }
+
+    /// The pressure (Q24 bar abs) at which the settled transducer reads `reading` (the inverse
+    /// of [`Self::read`], to restart a model from a measured value).
+    pub fn pressure_for_reading(&self, reading: PressureQ24) -> i32 {
+        let one = i64::from(PressureQ24::ONE_BAR);
+        let gauge = i64::from(reading.0) - one - self.offset_q24;
+        sat_i32(one + (gauge << 24) / self.gain_q24.max(1))
     }
 }
 
@@ -176,25 +356,7 @@ impl TwinCoeffs {
         step_q24: 8_589_935,
         stroke_q32: 257_698_038,
         held_steps: 1,
-        ext: ExtCoeffs {
-            active: false,
-            delay_q16: 0,
-            valve_lag: false,
-            lag_keep_q30: 0,
-            lag_gap_avg_q30: 0,
-            heat_rate_q30: 0,
-            sqrt_theta_s_q24: 0,
-            inv_sqrt_theta_s_q24: 0,
-            sensor_lag: false,
-            sensor_keep_q30: 0,
-            sensor_ramp_q30: 0,
-            sensor_offset_q24: 0,
-            sensor_gain_q24: 0,
-            droop_q24: 0,
-            droop_ref_q40: 0,
-            spring_quad_q4: 0,
-            laminar_q40: 0,
-        },
+        ext: ExtCoeffs::NONE,
     };
 
     /// Derives the integer coefficients; fails if a parameter is out of the supported range, or
@@ -253,9 +415,6 @@ impl TwinCoeffs {
     fn ext_coeffs(p: &TwinParams, theta_s: f64, c_in: f64) -> ExtCoeffs {
         let e: &Extensions = &p.ext;
         let h = SUBSTEP_S;
-        let keep = |tau: f64| if tau > 0.0 { libm::exp(-h / tau) } else { 0.0 };
-        let lag_keep = keep(e.valve_lag_s);
-        let lag_gap_avg = if e.valve_lag_s > 0.0 { e.valve_lag_s / h * (1.0 - lag_keep) } else { 0.0 };
         let thermal = e.heat_transfer_s > 0.0;
         // Nominal orifice's choked increment on the same basis as `c_in` (same Cf, V0, gas).
         let nominal_gain = c_in * circle_area(Meters::from_mm(TwinParams::NOMINAL_ORIFICE_MM)) / circle_area(p.orifice);
@@ -263,25 +422,14 @@ impl TwinCoeffs {
         let droop_ref = p.supply.to_abs_bar() * nominal_gain;
         // Laminar leak: m = q (p − P0)/7 bar; increment kRT h/V0 · m, in bar per bar g.
         let gas_t = if thermal { TEMPERATURE_K } else { e.supply_temperature_k() };
-        let laminar = KAPPA * GAS_CONSTANT * gas_t * h / p.dead_volume_m3 * e.laminar_leak_g_per_s * 1e-3 / 7.0 / 1e5;
+        let laminar = laminar_gain(e.laminar_leak_g_per_s, gas_t, p.dead_volume_m3, h);
         ExtCoeffs {
             active: true,
-            delay_q16: to_q_i64(e.transport_delay_s / h, 16),
-            valve_lag: e.valve_lag_s > 0.0,
-            lag_keep_q30: to_q_i64(lag_keep, 30),
-            lag_gap_avg_q30: to_q_i64(lag_gap_avg, 30),
-            heat_rate_q30: if thermal { to_q_i64(h / e.heat_transfer_s, 30).max(1) } else { 0 },
+            line: LineCoeffs::new(e.transport_delay_s, e.valve_lag_s, h),
+            heat_rate_q30: heat_rate_q30(e.heat_transfer_s, h),
             sqrt_theta_s_q24: to_q_i64(libm::sqrt(theta_s), 24),
             inv_sqrt_theta_s_q24: to_q_i64(1.0 / libm::sqrt(theta_s), 24),
-            sensor_lag: e.sensor_lag_s > 0.0,
-            sensor_keep_q30: to_q_i64(keep(e.sensor_lag_s), 30),
-            sensor_ramp_q30: if e.sensor_lag_s > 0.0 {
-                to_q_i64(e.sensor_lag_s / h * (1.0 - keep(e.sensor_lag_s)), 30)
-            } else {
-                0
-            },
-            sensor_offset_q24: to_q_i64(e.sensor_offset_bar, 24),
-            sensor_gain_q24: to_q_i64(e.sensor_gain, 24),
+            sensor: SensorCoeffs::new(e.sensor_lag_s, e.sensor_offset_bar, e.sensor_gain, h),
             droop_q24: if droop_ref > 0.0 { to_q_i64(e.regulator_droop_bar, 24) } else { 0 },
             droop_ref_q40: to_q_i64(droop_ref, 40).max(1),
             spring_quad_q4: to_q_i64(p.spring_rate_n_per_m * e.progressive_spring / p.stroke.0, 4),
@@ -321,16 +469,8 @@ impl TwinState {
 /// State of the optional mechanisms (untouched by the base model).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ExtState {
-    /// Last valve command given.
-    pub command: bool,
-    /// Valve position the chamber sees (the command after the transport delay).
-    pub effective: bool,
-    /// A command change is travelling down the line.
-    pub pending: bool,
-    /// Time since the last command change, substeps, Q16.
-    pub elapsed_q16: i64,
-    /// Opening area fraction of the effective valve path still closed (valve lag), Q30.
-    pub gap_q30: i64,
+    /// The valve path (transport delay, valve lag).
+    pub line: ValveLine,
     /// Gas temperature over wall temperature, Q24.
     pub theta_q24: i64,
     /// Transducer state (lagged chamber pressure), Q24 bar abs.
@@ -339,15 +479,8 @@ pub struct ExtState {
 
 impl ExtState {
     /// Valve closed for long, gas at wall temperature, transducer settled at atmosphere.
-    pub const APPLIED: Self = Self {
-        command: false,
-        effective: false,
-        pending: false,
-        elapsed_q16: 0,
-        gap_q30: 0,
-        theta_q24: 1 << 24,
-        sensed_q24: PressureQ24::ONE_BAR as i64,
-    };
+    pub const APPLIED: Self =
+        Self { line: ValveLine::CLOSED, theta_q24: 1 << 24, sensed_q24: PressureQ24::ONE_BAR as i64 };
 }
 
 /// What the twin reports after each sample.
@@ -554,14 +687,10 @@ impl Twin {
     /// (skipped while held), pressure (and gas temperature) and transducer.
     fn update_extended(&mut self, valve_open: bool) -> TwinSample {
         let e = self.coeffs.ext;
-        if valve_open != self.ext.command {
-            self.ext.command = valve_open;
-            self.ext.pending = true;
-            self.ext.elapsed_q16 = 0;
-        }
+        self.ext.line.command(valve_open);
         // Held test on the most open upstream reachable in this sample, with a wide margin for
         // the laminar leak and the temperature terms (a conservative bound only costs speed).
-        let any_open = self.ext.command || self.ext.effective;
+        let any_open = self.ext.line.command || self.ext.line.effective;
         let upstream = if any_open { self.coeffs.supply_q24 } else { PressureQ24::ONE_BAR };
         let p = i64::from(self.state.p_q24);
         let extra = (p * (self.coeffs.c_in_q32 + self.coeffs.c_leak_q32) >> 32) * i64::from(SUBSTEPS)
@@ -572,56 +701,20 @@ impl Twin {
             let p_start = i64::from(self.state.p_q24);
             let dx = if held { 0 } else { self.piston_substep() };
             self.pressure_substep_ext(&e, dx);
-            if e.sensor_lag {
-                // Exact first-order response to a pressure ramp over the substep.
-                let s = &mut self.ext;
-                let target = i64::from(self.state.p_q24);
-                let ramp = (target - p_start) * e.sensor_ramp_q30 >> 30;
-                s.sensed_q24 = target - ramp + ((s.sensed_q24 - p_start) * e.sensor_keep_q30 >> 30);
+            if e.sensor.lags() {
+                self.ext.sensed_q24 = e.sensor.lag_substep(self.ext.sensed_q24, p_start, i64::from(self.state.p_q24));
             }
         }
-        let lagged = if e.sensor_lag { self.ext.sensed_q24 } else { i64::from(self.state.p_q24) };
-        let one = i64::from(PressureQ24::ONE_BAR);
-        let gauge = lagged - one;
-        let read = one + e.sensor_offset_q24 + (gauge * e.sensor_gain_q24 >> 24);
-        TwinSample { pressure: PressureQ24(sat_i32(read)), travel_q32: self.state.x_q32 }
+        let lagged = if e.sensor.lags() { self.ext.sensed_q24 } else { i64::from(self.state.p_q24) };
+        TwinSample { pressure: e.sensor.read(lagged), travel_q32: self.state.x_q32 }
     }
 
     /// One 2 ms substep of valve and chamber with the optional mechanisms.
     fn pressure_substep_ext(&mut self, e: &ExtCoeffs, dx_q32: i64) {
-        const FULL_Q16: i64 = 1 << 16;
-        const ONE_Q30: i64 = 1 << 30;
         let k = self.coeffs;
         let one = PressureQ24::ONE_BAR;
         let up = |open: bool| if open { k.supply_q24 } else { one };
-
-        // Valve: the command reaches the chamber `delay` after it is given, possibly inside this
-        // substep (the part after the switch then uses the new path: continuous in the delay).
-        let old_effective = self.ext.effective;
-        let old_open_q30 = ONE_Q30 - (self.ext.gap_q30 * e.lag_gap_avg_q30 >> 30);
-        let mut new_share_q16 = 0;
-        if self.ext.pending {
-            self.ext.elapsed_q16 += FULL_Q16;
-            if self.ext.elapsed_q16 > e.delay_q16 {
-                new_share_q16 = (self.ext.elapsed_q16 - e.delay_q16).min(FULL_Q16);
-                self.ext.pending = false;
-                self.ext.effective = self.ext.command;
-                self.ext.gap_q30 = if e.valve_lag { ONE_Q30 } else { 0 };
-            }
-        }
-        let new_open_q30 = ONE_Q30 - (self.ext.gap_q30 * e.lag_gap_avg_q30 >> 30);
-        // (upstream, area share Q30) of up to two paths in this substep.
-        let paths = if new_share_q16 > 0 {
-            [
-                (up(old_effective), old_open_q30 * (FULL_Q16 - new_share_q16) >> 16),
-                (up(self.ext.effective), new_open_q30 * new_share_q16 >> 16),
-            ]
-        } else {
-            [(up(self.ext.effective), old_open_q30), (one, 0)]
-        };
-        if e.valve_lag {
-            self.ext.gap_q30 = self.ext.gap_q30 * e.lag_keep_q30 >> 30;
-        }
+        let paths = self.ext.line.substep(&e.line, e.line.delay_q16);
 
         let s = self.state;
         let p = s.p_q24;
@@ -631,11 +724,12 @@ impl Twin {
         // Energy-weighted (pressure) and mass-weighted increments, Q40 at V0: inflow at the supply
         // temperature, reverse flow and leaks at the gas temperature (thermal path only).
         let (mut energy, mut mass) = (0i64, 0i64);
-        for (upstream, share_q30) in paths {
+        for path in paths {
+            let share_q30 = path.share_q30;
             if share_q30 == 0 {
                 continue;
             }
-            let mut upstream = upstream;
+            let mut upstream = up(path.open);
             if e.droop_q24 != 0 && upstream == k.supply_q24 && p < upstream {
                 upstream = drooped_supply_q24(k.supply_q24, p, k.c_in_q32, share_q30, e);
             }
@@ -651,33 +745,89 @@ impl Twin {
                 mass += (f << 24) / sqrt_theta;
             }
         }
-        let leak = orifice_dp_q40(p, one, k.c_leak_q32);
-        let laminar = (i64::from(p) - i64::from(one)) * e.laminar_q40 >> 24;
-        if thermal {
-            energy -= (leak * sqrt_theta >> 24) + (laminar * theta >> 24);
-            mass -= ((leak << 24) / sqrt_theta) + laminar;
-        } else {
-            energy -= leak + laminar;
-            mass -= leak + laminar;
-        }
+        let (vent_energy, vent_mass) = vent_increments_q40(p, k.c_leak_q32, e.laminar_q40, theta, sqrt_theta, thermal);
+        energy -= vent_energy;
+        mass -= vent_mass;
 
         let vol_ratio_q15 = (32_768 + (i64::from(s.x_q32) * k.area_per_v0_q16 >> 33)).clamp(1, 1 << 20) as u32;
         let inv_vol_q16 = i64::from((1u32 << 31) / vol_ratio_q15);
         let work = (i64::from(p) * dx_q32 >> 24) * k.kappa_area_per_v0_q16 >> 8;
-        let mut dp = rshr((energy - work) * inv_vol_q16, 32);
+        let dvol_q30 = if thermal { (dx_q32 * k.area_per_v0_q16 >> 18) * inv_vol_q16 >> 16 } else { 0 };
+        let (p_new, theta_new) = chamber_substep(p, theta, energy - work, mass, inv_vol_q16, dvol_q30, e.heat_rate_q30);
+        self.state.p_q24 = p_new;
         if thermal {
-            // Wall heat: (k−1) Q / V = p (T_wall − T) / (T τ).
-            let ratio_q24 = (((1i64 << 24) - theta) << 24) / theta;
-            dp += (i64::from(p) * ratio_q24 >> 24) * e.heat_rate_q30 >> 30;
-            // dT/T = dp/p + dV/V − dm/m, with dm/m = (mass increment) · θ / (k p).
-            let p_pos = i64::from(p).max(1 << 16);
-            let dm_q24 = rshr(mass * inv_vol_q16, 32);
-            let dvol_q30 = (dx_q32 * k.area_per_v0_q16 >> 18) * inv_vol_q16 >> 16;
-            let rel_q30 = (dp << 30) / p_pos + dvol_q30 - (((dm_q24 * theta >> 24) << 30) * 5 / 7) / p_pos;
-            self.ext.theta_q24 = (theta + (theta * rel_q30 >> 30)).clamp(1 << 22, 1 << 26);
+            self.ext.theta_q24 = theta_new;
         }
-        self.state.p_q24 = sat_i32(i64::from(p) + dp).clamp(0, P_MAX_Q24);
     }
+}
+
+/// h/τ of a gas-to-wall heat transfer time constant τ (s, 0 = none) at substep `h_s`, Q30
+/// (0 = off, else at least 1 LSB).
+pub fn heat_rate_q30(tau_s: f64, h_s: f64) -> i64 {
+    if tau_s > 0.0 {
+        to_q_i64(h_s / tau_s, 30).max(1)
+    } else {
+        0
+    }
+}
+
+/// Pressure increment per substep per bar g (bar) of a laminar leak of `g_per_s` at 7 bar g
+/// from a volume `volume_m3` of gas at `gas_t_k`: m = q (p − P0)/7 bar, dp = kRT h/V · m.
+pub fn laminar_gain(g_per_s: f64, gas_t_k: f64, volume_m3: f64, h_s: f64) -> f64 {
+    KAPPA * GAS_CONSTANT * gas_t_k * h_s / volume_m3 * g_per_s * 1e-3 / 7.0 / 1e5
+}
+
+/// Energy- and mass-weighted pressure increments (Q40 bar at the reference volume) of the vents
+/// to atmosphere: an orifice of gain `c_vent_q32` and a laminar leak of `laminar_q40` per bar g.
+/// On the thermal path the gas leaves at its own temperature θ (Q24, `sqrt_theta_q24` = √θ):
+/// the orifice's mass flow scales as 1/√θ, its energy as √θ, the laminar leak's energy as θ.
+pub fn vent_increments_q40(
+    p_q24: i32,
+    c_vent_q32: i64,
+    laminar_q40: i64,
+    theta_q24: i64,
+    sqrt_theta_q24: i64,
+    thermal: bool,
+) -> (i64, i64) {
+    let one = PressureQ24::ONE_BAR;
+    let leak = orifice_dp_q40(p_q24, one, c_vent_q32);
+    let laminar = (i64::from(p_q24) - i64::from(one)) * laminar_q40 >> 24;
+    if thermal {
+        ((leak * sqrt_theta_q24 >> 24) + (laminar * theta_q24 >> 24), ((leak << 24) / sqrt_theta_q24) + laminar)
+    } else {
+        (leak + laminar, leak + laminar)
+    }
+}
+
+/// One substep of the chamber's pressure and gas temperature (the energy equation of SPEC §2
+/// with the optional wall heat): `energy_q40` is the net energy-weighted increment (flows minus
+/// compression work), `mass_q40` the net mass-weighted one, both at the reference volume and
+/// scaled by `inv_vol_q16` = V0/V; `dvol_q30` = dV/V; `heat_rate_q30` = h/τ (0: adiabatic,
+/// θ is then returned unchanged). Returns the new pressure (Q24 bar abs) and θ = T/T_wall (Q24).
+pub fn chamber_substep(
+    p_q24: i32,
+    theta_q24: i64,
+    energy_q40: i64,
+    mass_q40: i64,
+    inv_vol_q16: i64,
+    dvol_q30: i64,
+    heat_rate_q30: i64,
+) -> (i32, i64) {
+    let p = p_q24;
+    let theta = theta_q24.max(1);
+    let mut dp = rshr(energy_q40 * inv_vol_q16, 32);
+    let mut theta_new = theta_q24;
+    if heat_rate_q30 != 0 {
+        // Wall heat: (k−1) Q / V = p (T_wall − T) / (T τ).
+        let ratio_q24 = (((1i64 << 24) - theta) << 24) / theta;
+        dp += (i64::from(p) * ratio_q24 >> 24) * heat_rate_q30 >> 30;
+        // dT/T = dp/p + dV/V − dm/m, with dm/m = (mass increment) · θ / (k p).
+        let p_pos = i64::from(p).max(1 << 16);
+        let dm_q24 = rshr(mass_q40 * inv_vol_q16, 32);
+        let rel_q30 = (dp << 30) / p_pos + dvol_q30 - (((dm_q24 * theta >> 24) << 30) * 5 / 7) / p_pos;
+        theta_new = (theta + (theta * rel_q30 >> 30)).clamp(1 << 22, 1 << 26);
+    }
+    (sat_i32(i64::from(p) + dp).clamp(0, P_MAX_Q24), theta_new)
 }
 
 /// Supply pressure pu (Q24) sagging with the flow: the root of pu = Ps − droop · m(pu)/m_ref in
@@ -708,7 +858,7 @@ fn drooped_supply_q24(supply_q24: i32, p_q24: i32, c_q32: i64, share_q30: i64, e
 
 /// sqrt of a Q24 value, Q24 (integer square root: same bits on every target).
 #[inline]
-fn isqrt_q24(x_q24: i64) -> i64 {
+pub fn isqrt_q24(x_q24: i64) -> i64 {
     ((x_q24.max(0) as u64) << 24).isqrt() as i64
 }
 

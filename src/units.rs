@@ -68,3 +68,22 @@ impl PressureQ24 {
         BarG(f64::from(self.0) / f64::from(Self::ONE_BAR) - ATMOSPHERE_BAR_ABS)
     }
 }
+
+/// Absolute temperature in kelvin, Q23.8 fixed point in an `i32` (1 LSB = 1/256 K).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Default)]
+pub struct KelvinQ8(pub i32);
+
+impl KelvinQ8 {
+    /// Number of fractional bits.
+    pub const FRAC_BITS: u32 = 8;
+
+    /// From a temperature in °C (host/init-time conversion; saturates, NaN gives 0 K).
+    pub fn from_celsius(c: f64) -> Self {
+        let q = libm::round((c + 273.15) * 256.0);
+        Self(q as i32)
+    }
+    /// In kelvin (for reports).
+    pub fn kelvin(self) -> f64 {
+        f64::from(self.0) / 256.0
+    }
+}

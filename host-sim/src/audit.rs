@@ -374,6 +374,127 @@ fn collapse_degenerate_pairs(fits: &mut Vec<(Vec<Effect>, LmResult, usize)>) {
     fits.sort_by(|a, b| a.1.rss.total_cmp(&b.1.rss));
 }
 
+/// What an audit verdict writes as JSON (brake and metro audits share the format).
+pub(crate) struct VerdictJson<'a> {
+    /// `none`, a mechanism or `a+b`.
+    pub cause: &'a str,
+    /// Named mechanisms: name, unit, magnitude, 1-σ uncertainty.
+    pub causes: Vec<(&'a str, &'a str, f64, f64)>,
+    /// Base and extended NMSE, %.
+    pub nmse_pct: (f64, f64),
+    /// Per-trace mean NMSE (base, extended), % (data sets of several traces).
+    pub nmse_per_trace_pct: Option<(f64, f64)>,
+    /// Estimated noise σ, bar.
+    pub noise_sigma_bar: f64,
+    /// Candidates, best first.
+    pub ranking: Vec<RankingJson<'a>>,
+}
+
+/// One candidate of [`VerdictJson::ranking`].
+pub(crate) struct RankingJson<'a> {
+    pub name: &'a str,
+    pub magnitudes: Vec<f64>,
+    pub delta_bic: f64,
+    pub rss_ratio: f64,
+    pub nmse_pct: f64,
+}
+
+/// A fitted candidate as a verdict ranks it (brake [`CandidateFit`], metro
+/// [`crate::metro::MetroFit`]).
+pub(crate) trait RankedFit {
+    /// Name, magnitudes, ΔBIC against the base, RSS, NMSE %.
+    fn ranked(&self) -> (&str, Vec<f64>, f64, f64, f64);
+}
+
+impl<'a> RankingJson<'a> {
+    /// The ranking rows of `fits`, RSS ratios against `base_rss`.
+    pub(crate) fn rows(fits: &'a [impl RankedFit], base_rss: f64) -> Vec<Self> {
+        fits.iter()
+            .map(|c| {
+                let (name, magnitudes, delta_bic, rss, nmse_pct) = c.ranked();
+                Self { name, magnitudes, delta_bic, rss_ratio: base_rss / rss, nmse_pct }
+            })
+            .collect()
+    }
+}
+
+impl RankedFit for CandidateFit {
+    fn ranked(&self) -> (&str, Vec<f64>, f64, f64, f64) {
+        (&self.name, self.effects.iter().map(|e| e.1).collect(), self.delta_bic, self.rss, self.nmse_pct)
+    }
+}
+
+/// The JSON verdict: `{"cause", "magnitude", "uncertainty", "causes", "nmse_base_pct",
+/// "nmse_extended_pct", "nmse_ratio", ["nmse_per_trace_base_pct", "nmse_per_trace_extended_pct",]
+/// "noise_sigma_bar", "magnitudes", "ranking"}` (see [`AuditOutcome::to_json`]).
+pub(crate) fn verdict_json(v: &VerdictJson) -> String {
+    let num = |x: f64| if x.is_finite() { format!("{x:.6}") } else { "null".to_owned() };
+    let list = |xs: &mut dyn Iterator<Item = f64>| xs.map(num).collect::<Vec<_>>().join(", ");
+    let one_or_list = |pick: fn(&(&str, &str, f64, f64)) -> f64| match v.causes.len() {
+        0 => "null".to_owned(),
+        1 => num(pick(&v.causes[0])),
+        _ => format!("[{}]", list(&mut v.causes.iter().map(pick))),
+    };
+    let causes = v
+        .causes
+        .iter()
+        .map(|(name, unit, m, sd)| {
+            format!(r#"{{"name": "{name}", "magnitude": {}, "uncertainty": {}, "unit": "{unit}"}}"#, num(*m), num(*sd))
+        })
+        .collect::<Vec<_>>()
+        .join(", ");
+    let ranking = v
+        .ranking
+        .iter()
+        .map(|c| {
+            format!(
+                r#"{{"name": "{}", "magnitudes": [{}], "delta_bic": {}, "rss_ratio": {}, "nmse_pct": {}}}"#,
+                c.name,
+                list(&mut c.magnitudes.iter().copied()),
+                num(c.delta_bic),
+                num(c.rss_ratio),
+                num(c.nmse_pct)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(",\n    ");
+    let per_trace = v.nmse_per_trace_pct.map_or(String::new(), |(b, e)| {
+        format!("  \"nmse_per_trace_base_pct\": {},\n  \"nmse_per_trace_extended_pct\": {},\n", num(b), num(e))
+    });
+    format!(
+        "{{\n  \"cause\": \"{}\",\n  \"magnitude\": {},\n  \"uncertainty\": {},\n  \"causes\": [{}],\n  \
+         \"nmse_base_pct\": {},\n  \"nmse_extended_pct\": {},\n  \"nmse_ratio\": {},\n{}  \
+         \"noise_sigma_bar\": {},\n  \"magnitudes\": [{}],\n  \"ranking\": [\n    {}\n  ]\n}}\n",
+        v.cause,
+        one_or_list(|c| c.2),
+        one_or_list(|c| c.3),
+        causes,
+        num(v.nmse_pct.0),
+        num(v.nmse_pct.1),
+        num(v.nmse_pct.0 / v.nmse_pct.1),
+        per_trace,
+        num(v.noise_sigma_bar),
+        list(&mut v.causes.iter().map(|c| c.2)),
+        ranking
+    )
+}
+
+/// One line of a text ranking: name, ΔBIC, RSS ratio, NMSE and `name = magnitude ± σ unit` of
+/// each mechanism (brake and metro audits).
+pub(crate) fn ranking_line(
+    name: &str,
+    delta_bic: f64,
+    rss_ratio: f64,
+    nmse_pct: f64,
+    effects: &[(&str, &str, f64, f64)],
+) -> String {
+    let effects: Vec<String> = effects.iter().map(|(e, unit, v, u)| format!("{e} = {v:.4} ± {u:.4} {unit}")).collect();
+    format!(
+        "  {name:<36} ΔBIC {delta_bic:>10.1}  RSS ratio {rss_ratio:>8.2}  NMSE {nmse_pct:.3} %  {}\n",
+        effects.join(", ")
+    )
+}
+
 /// Result of [`levenberg_marquardt`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct LmResult {
@@ -517,7 +638,7 @@ fn solve(m: &[f64], b: &[f64], n: usize) -> Option<Vec<f64>> {
 }
 
 /// Diagonal of the inverse of `m` (n × n).
-fn inverse_diag(m: &[f64], n: usize) -> Vec<f64> {
+pub(crate) fn inverse_diag(m: &[f64], n: usize) -> Vec<f64> {
     (0..n)
         .map(|i| {
             let mut e = vec![0.0; n];
@@ -1091,63 +1212,14 @@ impl AuditOutcome {
     /// `{"name", "magnitude", "uncertainty", "unit"}` objects, so a reader need not branch.
     /// The NMSEs are SPEC §6 against the mean measured trace of each configuration group.
     pub fn to_json(&self) -> String {
-        let num = |v: f64| if v.is_finite() { format!("{v:.6}") } else { "null".to_owned() };
-        let magnitude = match self.cause_effects.len() {
-            0 => "null".to_owned(),
-            1 => num(self.cause_effects[0].1),
-            _ => format!("[{}]", self.cause_effects.iter().map(|e| num(e.1)).collect::<Vec<_>>().join(", ")),
-        };
-        let causes = self
-            .cause_effects
-            .iter()
-            .map(|(e, v, s)| {
-                format!(
-                    r#"{{"name": "{}", "magnitude": {}, "uncertainty": {}, "unit": "{}"}}"#,
-                    e,
-                    num(*v),
-                    num(*s),
-                    e.unit()
-                )
-            })
-            .collect::<Vec<_>>()
-            .join(", ");
-        let ranking = self
-            .ranking
-            .iter()
-            .map(|c| {
-                format!(
-                    r#"{{"name": "{}", "magnitudes": [{}], "delta_bic": {}, "rss_ratio": {}, "nmse_pct": {}}}"#,
-                    c.name,
-                    c.effects.iter().map(|e| num(e.1)).collect::<Vec<_>>().join(", "),
-                    num(c.delta_bic),
-                    num(self.base.rss / c.rss),
-                    num(c.nmse_pct)
-                )
-            })
-            .collect::<Vec<_>>()
-            .join(",\n    ");
-        format!(
-            "{{\n  \"cause\": \"{}\",\n  \"magnitude\": {},\n  \"uncertainty\": {},\n  \"causes\": [{}],\n  \
-             \"nmse_base_pct\": {},\n  \"nmse_extended_pct\": {},\n  \"nmse_ratio\": {},\n  \
-             \"nmse_per_trace_base_pct\": {},\n  \"nmse_per_trace_extended_pct\": {},\n  \
-             \"noise_sigma_bar\": {},\n  \"magnitudes\": [{}],\n  \"ranking\": [\n    {}\n  ]\n}}\n",
-            self.cause,
-            magnitude,
-            match self.cause_effects.len() {
-                0 => "null".to_owned(),
-                1 => num(self.cause_effects[0].2),
-                _ => format!("[{}]", self.cause_effects.iter().map(|e| num(e.2)).collect::<Vec<_>>().join(", ")),
-            },
-            causes,
-            num(self.base.nmse_pct),
-            num(self.chosen.nmse_pct),
-            num(self.base.nmse_pct / self.chosen.nmse_pct),
-            num(self.nmse_per_trace.0),
-            num(self.nmse_per_trace.1),
-            num(self.diagnostics.sigma_trace_bar),
-            self.cause_effects.iter().map(|e| num(e.1)).collect::<Vec<_>>().join(", "),
-            ranking
-        )
+        verdict_json(&VerdictJson {
+            cause: &self.cause,
+            causes: self.cause_effects.iter().map(|(e, v, sd)| (e.name(), e.unit(), *v, *sd)).collect(),
+            nmse_pct: (self.base.nmse_pct, self.chosen.nmse_pct),
+            nmse_per_trace_pct: Some(self.nmse_per_trace),
+            noise_sigma_bar: self.diagnostics.sigma_trace_bar,
+            ranking: RankingJson::rows(&self.ranking, self.base.rss),
+        })
     }
 
     /// Plain-text summary.
@@ -1183,19 +1255,8 @@ impl AuditOutcome {
         let runs = self.base.evaluations + self.ranking.iter().map(|c| c.evaluations).sum::<usize>();
         let _ = writeln!(s, "candidates (n = {}, n_eff = {:.0}; {runs} twin runs in all):", self.n, self.n_eff);
         for c in &self.ranking {
-            let _ = writeln!(
-                s,
-                "  {:<36} ΔBIC {:>10.1}  RSS ratio {:>8.2}  NMSE {:.3} %  {}",
-                c.name,
-                c.delta_bic,
-                self.base.rss / c.rss,
-                c.nmse_pct,
-                c.effects
-                    .iter()
-                    .map(|(e, v, u)| format!("{e} = {v:.4} ± {u:.4} {}", e.unit()))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
+            let effects: Vec<_> = c.effects.iter().map(|(e, v, u)| (e.name(), e.unit(), *v, *u)).collect();
+            s.push_str(&ranking_line(&c.name, c.delta_bic, self.base.rss / c.rss, c.nmse_pct, &effects));
         }
         let _ = writeln!(
             s,

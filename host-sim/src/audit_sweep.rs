@@ -10,13 +10,13 @@
 //! 20 % of the ratio itself would accept any gain from 0.8 to 1.2).
 
 use crate::audit::{audit, data_from_traces, AuditData, AuditOptions, AuditOutcome};
-use crate::generate::{fleet, sense, simulate_plant, GENERATE_STEP_S, TRACE_SAMPLES};
+use crate::generate::{fleet, sense, simulate_plant, unit, GENERATE_STEP_S, TRACE_SAMPLES};
 use crate::plant::Effect;
 use anyhow::{bail, Result};
 use pbm::sensor::bar_from_adc;
 use pbm::AdcCounts;
 use rand_chacha::ChaCha8Rng;
-use rand_core::{Rng, SeedableRng};
+use rand_core::SeedableRng;
 use rayon::prelude::*;
 
 /// Releases per hidden-effect case (one locomotive, nominal documented configuration).
@@ -29,10 +29,6 @@ pub const MIN_NMSE_GAIN: f64 = 5.0;
 pub const NULL_SEED_OFFSET: u64 = 1_000_000;
 /// Seed offset of the two-mechanism cases of a sweep.
 pub const PAIR_SEED_OFFSET: u64 = 2_000_000;
-
-fn unit(rng: &mut impl Rng) -> f64 {
-    (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-}
 
 /// A hidden-effect case: the truth and the noisy data.
 #[derive(Debug, Clone)]

@@ -186,7 +186,7 @@ fn stream(seed: u64, what: u64, a: u64, b: u64) -> ChaCha8Rng {
 }
 
 /// Uniform in [0, 1) with 53 random bits.
-fn unit(rng: &mut impl Rng) -> f64 {
+pub(crate) fn unit(rng: &mut impl Rng) -> f64 {
     (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
 }
 
@@ -195,7 +195,7 @@ fn uniform(rng: &mut impl Rng, (lo, hi): (f64, f64)) -> f64 {
 }
 
 /// Standard normal pair (Box–Muller; `1 − u` keeps the logarithm finite).
-fn normal_pair(rng: &mut impl Rng) -> (f64, f64) {
+pub(crate) fn normal_pair(rng: &mut impl Rng) -> (f64, f64) {
     let r = (-2.0 * (1.0 - unit(rng)).ln()).sqrt();
     let (s, c) = (std::f64::consts::TAU * unit(rng)).sin_cos();
     (r * c, r * s)

@@ -15,8 +15,10 @@ use cortex_m::peripheral::SYST;
 use pbm::classifier::diagnose;
 use pbm::estimator::{EstimatorConfig, ReleaseEstimator};
 use pbm::features::ReleaseFeatures;
+use pbm::params::Extensions;
 use pbm::pipeline::Pipeline;
-use pbm::{AdcCounts, Twin};
+use pbm::reservoir::{Reservoir, ReservoirParams};
+use pbm::{AdcCounts, BarG, KelvinQ8, Meters, PressureQ24, Twin};
 use pbm_firmware::adc::ADC_TRACE;
 use pbm_firmware::console::exit;
 use pbm_firmware::{println, stack, time_driver};
@@ -146,6 +148,27 @@ fn main() -> ! {
     }
     let (classify, verdict) = measure(overhead, || diagnose(pipeline.monitor().features()));
 
+    // The reservoir model the MetroPT-3 audit named (bench/audit_metro.md: heat transfer and
+    // transport delay on the fitted base), one 0.5 s substep per call, over four 90 s phases.
+    let metro = ReservoirParams {
+        volume_m3: 0.5,
+        compressor_g_per_s: 9.04,
+        outlet: Meters::from_mm(0.563),
+        discharge_coeff: 0.8,
+        ext: Extensions { heat_transfer_s: 20.3, transport_delay_s: 9.3, ..Extensions::NONE },
+    };
+    let Ok(mut reservoir) = Reservoir::new(&metro) else {
+        println!("bench: reservoir parameters rejected");
+        exit(false)
+    };
+    reservoir.restart(PressureQ24::from_bar_g(BarG(8.0)), true);
+    let mut reservoir_cost = Stats::default();
+    let oil = KelvinQ8::from_celsius(75.0);
+    for k in 0..720 {
+        let loaded = (k / 180) % 2 == 0;
+        reservoir_cost.add(measure(overhead, || reservoir.update(loaded, oil)).0);
+    }
+
     println!("samples={}", ADC_TRACE.len());
     println!("frames={frames}");
     println!("pipeline_instr_per_sample_mean={}", per_sample.mean());
@@ -161,6 +184,8 @@ fn main() -> ! {
     println!("estimator_instr_per_sample_max={}", estimator_cost.max);
     println!("estimator_max_at_sample={}", estimator_cost.argmax);
     println!("classify_instr={classify}");
+    println!("reservoir_instr_per_substep_mean={}", reservoir_cost.mean());
+    println!("reservoir_instr_per_substep_max={}", reservoir_cost.max);
     println!("verdict={verdict:?}");
     println!("static_ram_bytes={}", stack::static_ram());
     println!("peak_stack_bytes={}", stack::peak_used());

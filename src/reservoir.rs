@@ -1,0 +1,413 @@
+//! A compressor-fed air reservoir in fixed point, assembled from the twin's pieces: the model of
+//! the real MetroPT-3 air production unit (SPEC §8) that `host-sim audit-metro` fits.
+//!
+//! | piece | shared with the brake twin |
+//! |---|---|
+//! | constant-volume chamber, energy equation with optional wall heat | [`chamber_substep`] |
+//! | consumption + leakage: an orifice to atmosphere (flow table) and a laminar leak | [`vent_increments_q40`] (the twin's flow table) |
+//! | compressor command: transport delay and opening lag | [`ValveLine`], [`LineCoeffs`] |
+//! | transducer: lag, offset, gain | [`SensorCoeffs`] |
+//!
+//! The one new piece is the compressor: a **mass-flow source** (a screw compressor delivers a
+//! nearly constant mass flow against 8–10 bar, unlike an orifice from a fixed supply) while it is
+//! *loaded*, delivering air at the measured outlet temperature.
+//!
+//! # Q formats
+//!
+//! Pressure Q7.24 bar absolute ([`PressureQ24`]), gas temperature over the wall temperature
+//! [`TEMPERATURE_K`] as θ Q24, increments per substep summed in Q40 bar and rounded once (as in
+//! the twin). One [`Reservoir::update`] advances [`RESERVOIR_SUBSTEP_S`].
+//!
+//! # Mechanisms ([`Extensions`])
+//!
+//! - `transport_delay_s`: loading reaches the reservoir this long after the command (the
+//!   compressor outlet must first climb to reservoir pressure before the check valve opens);
+//!   unloading acts at once.
+//! - `valve_lag_s`: the delivered flow rises as 1 − e^(−t/τ) after loading.
+//! - `heat_transfer_s`: the gas temperature is a state, relaxing to the wall with this time
+//!   constant; the compressor delivers at the input temperature. Off (the base model, SPEC §2
+//!   chamber equation at constant T): every flow is at [`TEMPERATURE_K`].
+//! - `sensor_lag_s`, `sensor_offset_bar`, `sensor_gain`: the transducer.
+//! - `laminar_leak_g_per_s`: an extra leak ∝ gauge pressure, this many g/s at 7 bar g.
+//!
+//! `regulator_droop_bar`, `progressive_spring` and `gas_temperature_k` have no counterpart (no
+//! regulator, no piston, the delivery temperature is an input): [`ReservoirParams::validate`]
+//! rejects them.
+
+use crate::fixed::{sat_i32, to_q_i64};
+use crate::params::{c1, circle_area, within, Extensions, ParamError, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
+use crate::twin::{
+    chamber_substep, heat_rate_q30, isqrt_q24, laminar_gain, vent_increments_q40, LineCoeffs, SensorCoeffs, ValveLine,
+};
+use crate::units::{KelvinQ8, Meters, PressureQ24};
+
+/// Length of one [`Reservoir::update`], s.
+pub const RESERVOIR_SUBSTEP_S: f64 = 0.5;
+
+/// Wall (reference) temperature in kelvin, Q8.
+const WALL_KELVIN_Q8: i64 = 75_046; // round(293.15 · 256)
+
+/// Slope of the flow table's laminar segment (as the twin's): the explicit vent step stays
+/// monotone down to atmosphere while `c_vent · slope < 1`; a factor of two of margin is kept.
+const LAMINAR_SLOPE: f64 = 94.0;
+
+/// Largest compressor pressure increment per substep, bar.
+const MAX_STEP_BAR: f64 = 0.25;
+/// Largest laminar leak gain per substep, per bar g.
+const MAX_LAMINAR_GAIN: f64 = 2e-3;
+/// Delivery temperatures are clamped to 1..=600 K (Q8).
+const MAX_DELIVERY_Q8: i64 = 600 << 8;
+
+/// Physical parameters of the reservoir model.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReservoirParams {
+    /// Reservoir volume, m³. Only flows per volume are observable from a pressure record, so a
+    /// fit fixes it and reports the flows at this volume.
+    pub volume_m3: f64,
+    /// Compressor delivery while loaded, g/s.
+    pub compressor_g_per_s: f64,
+    /// Equivalent orifice of consumption and leakage to atmosphere (diameter).
+    pub outlet: Meters,
+    /// Discharge coefficient of the outlet orifice.
+    pub discharge_coeff: f64,
+    /// Optional mechanisms (see the module documentation for the supported ones).
+    pub ext: Extensions,
+}
+
+impl ReservoirParams {
+    /// Checks ranges and that only supported mechanisms are on.
+    pub fn validate(&self) -> Result<(), ParamError> {
+        let checks: [(f64, f64, f64); 4] = [
+            (self.volume_m3, 0.01, 10.0),
+            (self.compressor_g_per_s, 0.0, 200.0),
+            (self.outlet.0, 0.0, 20e-3),
+            (self.discharge_coeff, 0.05, 1.0),
+        ];
+        within(&checks, ParamError::Reservoir)?;
+        // The mechanisms' ranges at this model's time scale (the brake twin's are for a 60 s
+        // release); the laminar leak is bounded through its gain in [`ReservoirCoeffs::new`].
+        let e = &self.ext;
+        let ranges: [(f64, f64, f64); 7] = [
+            (e.transport_delay_s, 0.0, 120.0),
+            (e.valve_lag_s, 0.0, 300.0),
+            (e.heat_transfer_s, 0.0, 10_000.0),
+            (e.sensor_lag_s, 0.0, 300.0),
+            (e.sensor_offset_bar, -2.0, 2.0),
+            (e.sensor_gain, 0.5, 1.5),
+            (e.laminar_leak_g_per_s, 0.0, 100.0),
+        ];
+        within(&ranges, ParamError::Extension)?;
+        if e.regulator_droop_bar != 0.0 || e.progressive_spring != 0.0 || e.gas_temperature_k != 0.0 {
+            return Err(ParamError::Extension);
+        }
+        Ok(())
+    }
+}
+
+/// Integer coefficients of the reservoir model, per [`RESERVOIR_SUBSTEP_S`].
+///
+/// | field | format | meaning |
+/// |---|---|---|
+/// | `inflow_q40` | Q40 | compressor pressure increment per substep at the wall temperature, bar |
+/// | `c_vent_q32` | Q32 | outlet orifice: choked increment per substep per bar upstream |
+/// | `laminar_q40` | Q40 | laminar leak increment per substep per bar g |
+/// | `line` | [`LineCoeffs`] | delay (loading only) and lag of the compressor flow |
+/// | `heat_rate_q30` | Q30 | h/τ of the wall heat transfer (0 = adiabatic base) |
+/// | `sensor` | [`SensorCoeffs`] | transducer |
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ReservoirCoeffs {
+    inflow_q40: i64,
+    c_vent_q32: i64,
+    laminar_q40: i64,
+    line: LineCoeffs,
+    heat_rate_q30: i64,
+    sensor: SensorCoeffs,
+}
+
+impl ReservoirCoeffs {
+    /// Derives the integer coefficients (init time, `f64`).
+    pub fn new(p: &ReservoirParams) -> Result<Self, ParamError> {
+        p.validate()?;
+        let h = RESERVOIR_SUBSTEP_S;
+        let e = &p.ext;
+        let krt = KAPPA * GAS_CONSTANT * TEMPERATURE_K;
+        // Same orifice gain as the twin's: κ R √T Cf A C1 h / V.
+        let c_vent =
+            KAPPA * GAS_CONSTANT * libm::sqrt(TEMPERATURE_K) * p.discharge_coeff * circle_area(p.outlet) * c1() * h
+                / p.volume_m3;
+        let inflow = krt * p.compressor_g_per_s * 1e-3 * h / p.volume_m3 / 1e5;
+        let laminar = laminar_gain(e.laminar_leak_g_per_s, TEMPERATURE_K, p.volume_m3, h);
+        // Explicit steps must stay small (accuracy and monotonicity), which also bounds every
+        // product of the substep inside i64.
+        if c_vent * LAMINAR_SLOPE >= 0.5 || inflow > MAX_STEP_BAR || laminar > MAX_LAMINAR_GAIN {
+            return Err(ParamError::Reservoir);
+        }
+        Ok(Self {
+            inflow_q40: to_q_i64(inflow, 40),
+            c_vent_q32: to_q_i64(c_vent, 32),
+            laminar_q40: to_q_i64(laminar, 40),
+            line: LineCoeffs::new(e.transport_delay_s, e.valve_lag_s, h),
+            heat_rate_q30: heat_rate_q30(e.heat_transfer_s, h),
+            sensor: SensorCoeffs::new(e.sensor_lag_s, e.sensor_offset_bar, e.sensor_gain, h),
+        })
+    }
+}
+
+/// The reservoir model: coefficients plus state (pressure, gas temperature, compressor line,
+/// transducer), advanced [`RESERVOIR_SUBSTEP_S`] per [`Reservoir::update`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Reservoir {
+    coeffs: ReservoirCoeffs,
+    p_q24: i32,
+    theta_q24: i64,
+    line: ValveLine,
+    sensed_q24: i64,
+}
+
+impl Reservoir {
+    /// A reservoir at atmosphere, compressor unloaded for long, gas at the wall temperature.
+    pub fn new(params: &ReservoirParams) -> Result<Self, ParamError> {
+        let coeffs = ReservoirCoeffs::new(params)?;
+        let one = PressureQ24::ONE_BAR;
+        Ok(Self { coeffs, p_q24: one, theta_q24: 1 << 24, line: ValveLine::CLOSED, sensed_q24: i64::from(one) })
+    }
+
+    /// Restarts from a transducer reading (bar abs): the pressure and the transducer state move
+    /// together until the transducer reads `reading`, keeping the lag between them (a fresh
+    /// model's transducer is settled). `settle`: also put the gas at the wall temperature and
+    /// the compressor line at rest (unloaded), as after a long pause; otherwise both keep their
+    /// state (a correction in the middle of a cycle).
+    pub fn restart(&mut self, reading: PressureQ24, settle: bool) {
+        let target = i64::from(self.coeffs.sensor.pressure_for_reading(reading));
+        let now = i64::from(self.coeffs.sensor.pressure_for_reading(self.reading()));
+        let shift = target - now;
+        self.p_q24 = sat_i32(i64::from(self.p_q24) + shift).max(0);
+        self.sensed_q24 += shift;
+        if settle {
+            self.theta_q24 = 1 << 24;
+            self.line = ValveLine::CLOSED;
+        }
+    }
+
+    /// Reservoir pressure (not what the transducer reads), Q24 bar abs.
+    pub fn pressure(&self) -> PressureQ24 {
+        PressureQ24(self.p_q24)
+    }
+
+    /// What the transducer reads now (bar abs).
+    pub fn reading(&self) -> PressureQ24 {
+        self.coeffs.sensor.read(self.sensed_q24)
+    }
+
+    /// Gas temperature over the wall temperature, Q24 (1 on the adiabatic base).
+    pub fn theta_q24(&self) -> i64 {
+        self.theta_q24
+    }
+
+    /// Advances one substep with the compressor `loaded` (as commanded) delivering air at
+    /// `delivery`; returns what the transducer reads (bar abs).
+    pub fn update(&mut self, loaded: bool, delivery: KelvinQ8) -> PressureQ24 {
+        let c = &self.coeffs;
+        self.line.command(loaded);
+        // The check valve opens only once the compressor outlet has climbed to reservoir
+        // pressure: the delay applies to loading; unloading stops the delivery at once.
+        let delay_q16 = if self.line.command { c.line.delay_q16() } else { 0 };
+        let paths = self.line.substep(&c.line, delay_q16);
+        let p = self.p_q24;
+        let thermal = c.heat_rate_q30 != 0;
+        let theta = self.theta_q24.max(1);
+        let sqrt_theta = if thermal { isqrt_q24(theta) } else { 1 << 24 };
+        let mut mass = 0i64;
+        for path in paths {
+            if path.open {
+                mass += c.inflow_q40 * (path.share_q30 >> 14) >> 16;
+            }
+        }
+        // Delivered enthalpy: the mass increment at the delivery temperature (θ_d = T_d/T_wall).
+        let mut energy = if thermal {
+            let theta_d_q16 = (i64::from(delivery.0).clamp(1 << 8, MAX_DELIVERY_Q8) << 16) / WALL_KELVIN_Q8;
+            mass * theta_d_q16 >> 16
+        } else {
+            mass
+        };
+        let (vent_energy, vent_mass) = vent_increments_q40(p, c.c_vent_q32, c.laminar_q40, theta, sqrt_theta, thermal);
+        energy -= vent_energy;
+        mass -= vent_mass;
+        let (p_new, theta_new) = chamber_substep(p, theta, energy, mass, 1 << 16, 0, c.heat_rate_q30);
+        if c.sensor.lags() {
+            self.sensed_q24 = c.sensor.lag_substep(self.sensed_q24, i64::from(p), i64::from(p_new));
+        } else {
+            self.sensed_q24 = i64::from(p_new);
+        }
+        self.p_q24 = p_new;
+        self.theta_q24 = theta_new;
+        c.sensor.read(self.sensed_q24)
+    }
+}
+
+/// Pressure rate (bar/s) of a choked outlet orifice per bar abs, at the wall temperature: the
+/// decay rate λ of dp/dt = −λ p for the given outlet (for reports).
+pub fn vent_rate_per_s(p: &ReservoirParams) -> f64 {
+    KAPPA * GAS_CONSTANT * libm::sqrt(TEMPERATURE_K) * p.discharge_coeff * circle_area(p.outlet) * c1() / p.volume_m3
+}
+
+/// Pressure rate (bar/s) of the compressor's delivery at the wall temperature (for reports).
+pub fn fill_rate_bar_per_s(p: &ReservoirParams) -> f64 {
+    KAPPA * GAS_CONSTANT * TEMPERATURE_K * p.compressor_g_per_s * 1e-3 / p.volume_m3 / 1e5
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn params() -> ReservoirParams {
+        ReservoirParams {
+            volume_m3: 0.5,
+            compressor_g_per_s: 10.0,
+            outlet: Meters::from_mm(0.5),
+            discharge_coeff: 0.8,
+            ext: Extensions::NONE,
+        }
+    }
+
+    fn bar(q: PressureQ24) -> f64 {
+        f64::from(q.0) / f64::from(PressureQ24::ONE_BAR)
+    }
+
+    #[test]
+    fn base_fill_and_decay_follow_the_rates() {
+        let p = params();
+        let mut r = Reservoir::new(&p).unwrap();
+        r.restart(PressureQ24::from_bar_g(crate::BarG(8.0)), true);
+        let t_oil = KelvinQ8::from_celsius(60.0);
+        // 60 s loaded: dp/dt = fill − λ p.
+        let p0 = bar(r.pressure());
+        for _ in 0..120 {
+            r.update(true, t_oil);
+        }
+        let (fill, lam) = (fill_rate_bar_per_s(&p), vent_rate_per_s(&p));
+        let expect = fill / lam + (p0 - fill / lam) * libm::exp(-lam * 60.0);
+        assert!((bar(r.pressure()) - expect).abs() < 1e-4, "{} vs {expect}", bar(r.pressure()));
+        // The adiabatic base ignores the delivery temperature.
+        let mut hot = Reservoir::new(&p).unwrap();
+        hot.restart(PressureQ24::from_bar_g(crate::BarG(8.0)), true);
+        for _ in 0..120 {
+            hot.update(true, KelvinQ8::from_celsius(90.0));
+        }
+        assert_eq!(hot.pressure(), r.pressure());
+        // 10 min unloaded: p = p1 e^(−λ t).
+        let p1 = bar(r.pressure());
+        for _ in 0..1200 {
+            r.update(false, t_oil);
+        }
+        let expect = p1 * libm::exp(-lam * 600.0);
+        assert!((bar(r.pressure()) - expect).abs() < 1e-4, "{} vs {expect}", bar(r.pressure()));
+    }
+
+    #[test]
+    fn heat_transfer_settles_hot_delivery_back_to_the_wall() {
+        let mut p = params();
+        p.ext.heat_transfer_s = 20.0;
+        let mut r = Reservoir::new(&p).unwrap();
+        r.restart(PressureQ24::from_bar_g(crate::BarG(8.0)), true);
+        let hot = KelvinQ8::from_celsius(80.0);
+        for _ in 0..180 {
+            r.update(true, hot);
+        }
+        assert!(r.theta_q24() > 1 << 24, "hot delivery warms the gas");
+        let p_unload = bar(r.pressure());
+        // Right after unloading the pressure falls faster than the vent alone: the gas cools.
+        for _ in 0..240 {
+            r.update(false, hot);
+        }
+        let lam = vent_rate_per_s(&p);
+        let vent_only = p_unload * libm::exp(-lam * 120.0);
+        assert!(bar(r.pressure()) < vent_only - 0.01, "{} vs {vent_only}", bar(r.pressure()));
+        let theta = r.theta_q24() as f64 / f64::from(1 << 24);
+        assert!((theta - 1.0).abs() < 0.01, "θ {theta} back at the wall after 6 τ");
+    }
+
+    #[test]
+    fn transport_delay_holds_back_loading_only() {
+        let mut p = params();
+        p.ext.transport_delay_s = 5.0;
+        let mut r = Reservoir::new(&p).unwrap();
+        let start = PressureQ24::from_bar_g(crate::BarG(8.0));
+        r.restart(start, true);
+        let t = KelvinQ8::from_celsius(60.0);
+        for _ in 0..10 {
+            r.update(true, t);
+        }
+        // 5 s of delay: only the vent acted.
+        assert!(r.pressure() < start);
+        r.update(true, t);
+        assert!(r.pressure() > start);
+        // Unloading acts at once.
+        let before = r.pressure();
+        r.update(false, t);
+        assert!(r.pressure() < before);
+    }
+
+    #[test]
+    fn sensor_terms_and_restart_invert_each_other() {
+        let mut p = params();
+        p.ext.sensor_offset_bar = -0.05;
+        p.ext.sensor_gain = 1.03;
+        p.ext.sensor_lag_s = 4.0;
+        let mut r = Reservoir::new(&p).unwrap();
+        let reading = PressureQ24::from_bar_g(crate::BarG(9.2));
+        r.restart(reading, true);
+        // 9.2 = −0.05 + 1.03 · gauge.
+        assert!((bar(r.pressure()) - 1.0 - 9.25 / 1.03).abs() < 1e-6);
+        let first = r.update(false, KelvinQ8::from_celsius(50.0));
+        assert!((first.0 - reading.0).abs() < 1 << 12, "settled transducer reads its restart value");
+        // While the transducer lags, a restart moves both and keeps the lag.
+        for _ in 0..20 {
+            r.update(true, KelvinQ8::from_celsius(50.0));
+        }
+        let lag = i64::from(r.pressure().0) - r.sensed_q24;
+        assert!(lag > 1 << 16, "the transducer lags the rise");
+        let target = PressureQ24(r.reading().0 + (1 << 20));
+        r.restart(target, false);
+        assert!((r.reading().0 - target.0).abs() <= 2);
+        assert_eq!(i64::from(r.pressure().0) - r.sensed_q24, lag);
+    }
+
+    #[test]
+    fn unsupported_or_unstable_parameters_are_rejected() {
+        let mut p = params();
+        p.ext.progressive_spring = 0.2;
+        assert_eq!(Reservoir::new(&p), Err(ParamError::Extension));
+        let mut p = params();
+        p.outlet = Meters::from_mm(19.0);
+        assert_eq!(Reservoir::new(&p), Err(ParamError::Reservoir));
+        let mut p = params();
+        p.volume_m3 = f64::NAN;
+        assert_eq!(Reservoir::new(&p), Err(ParamError::Reservoir));
+    }
+
+    #[test]
+    fn saturates_instead_of_overflowing() {
+        // The largest accepted delivery and leaks, hot gas, driven far past the sensor range.
+        let mut p = params();
+        p.volume_m3 = 0.1;
+        p.compressor_g_per_s = 42.0;
+        p.outlet = Meters::from_mm(1.0);
+        p.ext.laminar_leak_g_per_s = 1.1;
+        p.ext.heat_transfer_s = 5.0;
+        let mut r = Reservoir::new(&p).unwrap();
+        for delivery in [KelvinQ8(i32::MAX), KelvinQ8(i32::MIN), KelvinQ8(0)] {
+            for _ in 0..20_000 {
+                let read = r.update(true, delivery);
+                assert!(read.0 > 0);
+            }
+            for _ in 0..2000 {
+                r.update(false, delivery);
+            }
+        }
+        let mut p = params();
+        p.compressor_g_per_s = 50.0;
+        p.volume_m3 = 0.1;
+        assert_eq!(Reservoir::new(&p), Err(ParamError::Reservoir), "0.29 bar per substep");
+    }
+}
