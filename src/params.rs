@@ -15,6 +15,11 @@ pub const CRITICAL_RATIO: f64 = 0.528;
 pub fn c1() -> f64 {
     libm::sqrt(KAPPA / GAS_CONSTANT * libm::pow(2.0 / (KAPPA + 1.0), (KAPPA + 1.0) / (KAPPA - 1.0)))
 }
+/// κ R √T0 Cf A C1: the choked pressure rate (bar/s per bar upstream) an orifice of diameter `d`
+/// gives one m³ of gas at [`TEMPERATURE_K`] (divide by the volume; SPEC §2 flow and chamber).
+pub fn choked_orifice_gain(discharge_coeff: f64, d: Meters) -> f64 {
+    KAPPA * GAS_CONSTANT * libm::sqrt(TEMPERATURE_K) * discharge_coeff * circle_area(d) * c1()
+}
 /// Unchoked flow constant C2 = sqrt(2k/(R(k-1))) ≈ 0.156174.
 pub fn c2() -> f64 {
     libm::sqrt(2.0 * KAPPA / (GAS_CONSTANT * (KAPPA - 1.0)))

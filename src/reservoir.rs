@@ -35,9 +35,10 @@
 //! rejects them.
 
 use crate::fixed::{sat_i32, to_q_i64};
-use crate::params::{c1, circle_area, within, Extensions, ParamError, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
+use crate::params::{choked_orifice_gain, within, Extensions, ParamError, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
 use crate::twin::{
     chamber_substep, heat_rate_q30, isqrt_q24, laminar_gain, vent_increments_q40, LineCoeffs, SensorCoeffs, ValveLine,
+    LAMINAR_SLOPE,
 };
 use crate::units::{KelvinQ8, Meters, PressureQ24};
 
@@ -46,10 +47,6 @@ pub const RESERVOIR_SUBSTEP_S: f64 = 0.5;
 
 /// Wall (reference) temperature in kelvin, Q8.
 const WALL_KELVIN_Q8: i64 = 75_046; // round(293.15 · 256)
-
-/// Slope of the flow table's laminar segment (as the twin's): the explicit vent step stays
-/// monotone down to atmosphere while `c_vent · slope < 1`; a factor of two of margin is kept.
-const LAMINAR_SLOPE: f64 = 94.0;
 
 /// Largest compressor pressure increment per substep, bar.
 const MAX_STEP_BAR: f64 = 0.25;
@@ -130,15 +127,13 @@ impl ReservoirCoeffs {
         p.validate()?;
         let h = RESERVOIR_SUBSTEP_S;
         let e = &p.ext;
-        let krt = KAPPA * GAS_CONSTANT * TEMPERATURE_K;
-        // Same orifice gain as the twin's: κ R √T Cf A C1 h / V.
-        let c_vent =
-            KAPPA * GAS_CONSTANT * libm::sqrt(TEMPERATURE_K) * p.discharge_coeff * circle_area(p.outlet) * c1() * h
-                / p.volume_m3;
-        let inflow = krt * p.compressor_g_per_s * 1e-3 * h / p.volume_m3 / 1e5;
+        // Same orifice gain as the twin's, per substep.
+        let c_vent = vent_rate_per_s(p) * h;
+        let inflow = fill_rate_bar_per_s(p) * h;
         let laminar = laminar_gain(e.laminar_leak_g_per_s, TEMPERATURE_K, p.volume_m3, h);
-        // Explicit steps must stay small (accuracy and monotonicity), which also bounds every
-        // product of the substep inside i64.
+        // Explicit steps must stay small (accuracy and monotonicity: the vent step is monotone
+        // down to atmosphere while `c_vent · LAMINAR_SLOPE < 1`, kept with a factor of two), which
+        // also bounds every product of the substep inside i64.
         if c_vent * LAMINAR_SLOPE >= 0.5 || inflow > MAX_STEP_BAR || laminar > MAX_LAMINAR_GAIN {
             return Err(ParamError::Reservoir);
         }
@@ -248,7 +243,7 @@ impl Reservoir {
 /// Pressure rate (bar/s) of a choked outlet orifice per bar abs, at the wall temperature: the
 /// decay rate λ of dp/dt = −λ p for the given outlet (for reports).
 pub fn vent_rate_per_s(p: &ReservoirParams) -> f64 {
-    KAPPA * GAS_CONSTANT * libm::sqrt(TEMPERATURE_K) * p.discharge_coeff * circle_area(p.outlet) * c1() / p.volume_m3
+    choked_orifice_gain(p.discharge_coeff, p.outlet) / p.volume_m3
 }
 
 /// Pressure rate (bar/s) of the compressor's delivery at the wall temperature (for reports).

@@ -44,7 +44,9 @@
 //! are public pieces: [`crate::reservoir`] assembles its compressor-fed reservoir from them.
 
 use crate::fixed::{rshr, sat_i32, to_q_i32, to_q_i64};
-use crate::params::{c1, circle_area, Extensions, ParamError, TwinParams, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
+use crate::params::{
+    choked_orifice_gain, circle_area, Extensions, ParamError, TwinParams, GAS_CONSTANT, KAPPA, TEMPERATURE_K,
+};
 use crate::units::{Meters, PressureQ24};
 
 mod lut {
@@ -330,7 +332,7 @@ impl SensorCoeffs {
 
 /// Slope of the last (laminar) segment of the flow table, per unit pressure ratio: the Euler
 /// pressure step is monotone near the plateau while `c · LAMINAR_SLOPE · steps < 1`.
-const LAMINAR_SLOPE: f64 = 94.0;
+pub(crate) const LAMINAR_SLOPE: f64 = 94.0;
 
 impl TwinCoeffs {
     /// The coefficients of [`TwinParams::nominal`], precomputed so that a build that only runs
@@ -368,10 +370,7 @@ impl TwinCoeffs {
             return Err(ParamError::Extension);
         }
         let h = SUBSTEP_S;
-        let sqrt_t = libm::sqrt(TEMPERATURE_K);
-        let orifice_gain = |d: Meters| {
-            KAPPA * GAS_CONSTANT * sqrt_t * p.discharge_coeff * circle_area(d) * c1() * h / p.dead_volume_m3
-        };
+        let orifice_gain = |d: Meters| choked_orifice_gain(p.discharge_coeff, d) * h / p.dead_volume_m3;
         let e = &p.ext;
         // Without heat transfer the gas is at the supply temperature throughout: both orifice
         // gains scale by sqrt(Ts/T0) (exactly 1 in the base model, where the factor is skipped).

@@ -37,7 +37,8 @@
 //! Result on `metropt3_head.csv` (bench/audit_metro.md): the adiabatic base misses the fast
 //! pressure drop in the first two minutes after each unloading and the slowing rise during
 //! loading; the audit names `heat_transfer+transport_delay` (τ ≈ 20 s, delay ≈ 9 s) and the
-//! NMSE falls from 0.96 % to 0.26 %.
+//! NMSE falls from 0.96 % to 0.26 %. `--synthetic-sweep N` hides a drawn mechanism in records
+//! from the `f64` reference and scores the same audit on them ([`synthetic_sweep`]).
 //!
 //! The fit, the candidate ranking and the decision use the
 //! same machinery and rules as the brake audit ([`crate::audit::levenberg_marquardt`], ΔBIC with
