@@ -217,8 +217,9 @@ impl Tally {
         self.hits += usize::from(r.hit());
         self.names += usize::from(r.name_ok);
     }
-    fn pct(n: usize, d: usize) -> f64 {
-        100.0 * n as f64 / d.max(1) as f64
+    /// `n/d = x.x %`.
+    fn rate(n: usize, d: usize) -> String {
+        format!("{n}/{d} = {:.1} %", 100.0 * n as f64 / d.max(1) as f64)
     }
 }
 
@@ -280,13 +281,9 @@ pub fn run(a: &SweepArgs) -> Result<()> {
     );
     if singles.total > 0 {
         println!(
-            "single mechanism: hit rate (name, magnitude ±20 %, NMSE gain ≥ 5×) {}/{} = {:.1} %; right name {}/{} = {:.1} %",
-            singles.hits,
-            singles.total,
-            Tally::pct(singles.hits, singles.total),
-            singles.names,
-            singles.total,
-            Tally::pct(singles.names, singles.total)
+            "single mechanism: hit rate (name, magnitude ±20 %, NMSE gain ≥ 5×) {}; right name {}",
+            Tally::rate(singles.hits, singles.total),
+            Tally::rate(singles.names, singles.total)
         );
         println!("median NMSE gain {:.1}×", gains[gains.len() / 2]);
         println!("  {:<20} {:>6} {:>6} {:>6}", "mechanism", "cases", "names", "hits");
@@ -296,13 +293,9 @@ pub fn run(a: &SweepArgs) -> Result<()> {
     }
     if pairs.total > 0 {
         println!(
-            "two mechanisms: hit rate {}/{} = {:.1} %; both names right {}/{} = {:.1} %",
-            pairs.hits,
-            pairs.total,
-            Tally::pct(pairs.hits, pairs.total),
-            pairs.names,
-            pairs.total,
-            Tally::pct(pairs.names, pairs.total)
+            "two mechanisms: hit rate {}; both names right {}",
+            Tally::rate(pairs.hits, pairs.total),
+            Tally::rate(pairs.names, pairs.total)
         );
     }
     if nulls.total > 0 {

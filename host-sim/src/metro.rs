@@ -53,6 +53,7 @@ use crate::plant::Effect;
 use anyhow::{bail, Context, Result};
 use pbm::params::{Extensions, KAPPA, TEMPERATURE_K};
 use pbm::reservoir::{fill_rate_bar_per_s, vent_rate_per_s, Reservoir, ReservoirParams, RESERVOIR_SUBSTEP_S};
+use pbm::twin::laminar_gain;
 use pbm::{BarG, KelvinQ8, Meters, PressureQ24};
 use rand_chacha::ChaCha8Rng;
 use rand_core::SeedableRng;
@@ -300,6 +301,11 @@ pub fn simulate(rows: &[MetroRow], params: &ReservoirParams) -> Option<Vec<f64>>
 #[derive(Debug, Clone)]
 struct ReferenceReservoir {
     params: ReservoirParams,
+    /// Compressor fill rate (bar/s), outlet decay rate λ (1/s) and laminar leak rate (1/s per
+    /// bar g), at the wall temperature: fixed by the parameters, so derived once.
+    fill: f64,
+    leak: f64,
+    laminar: f64,
     /// Reservoir pressure, bar abs.
     p: f64,
     /// Gas temperature, K.
@@ -317,6 +323,9 @@ impl ReferenceReservoir {
     fn new(params: &ReservoirParams) -> Self {
         Self {
             params: *params,
+            fill: fill_rate_bar_per_s(params),
+            leak: vent_rate_per_s(params),
+            laminar: laminar_gain(params.ext.laminar_leak_g_per_s, TEMPERATURE_K, params.volume_m3, 1.0),
             p: 1.0,
             temp: TEMPERATURE_K,
             sensed: 0.0,
@@ -343,7 +352,7 @@ impl MetroModel for ReferenceReservoir {
     fn step(&mut self, command: bool, delivery_c: f64) {
         let e = self.params.ext;
         let h = RESERVOIR_SUBSTEP_S;
-        let (fill, leak) = (fill_rate_bar_per_s(&self.params), vent_rate_per_s(&self.params));
+        let (fill, leak) = (self.fill, self.leak);
         let t0 = TEMPERATURE_K;
         let delay = if command { e.transport_delay_s } else { 0.0 };
         if command != self.pending.map_or(self.loaded_eff, |(_, s)| s) {
@@ -370,9 +379,7 @@ impl MetroModel for ReferenceReservoir {
         let on = |l: bool| f64::from(u8::from(l));
         let q_in = fill * (new_share * on(self.loaded_eff) * ramp + (1.0 - new_share) * on(previous));
         let p = self.p;
-        let q_lam = fill_rate_bar_per_s(&ReservoirParams { compressor_g_per_s: e.laminar_leak_g_per_s, ..self.params })
-            * (p - 1.0)
-            / 7.0;
+        let q_lam = self.laminar * (p - 1.0);
         let dp = if e.heat_transfer_s > 0.0 {
             let theta = self.temp / t0;
             let q_out = leak * p / theta.sqrt() + q_lam; // mass flows on the T0 basis
