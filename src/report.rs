@@ -6,23 +6,26 @@ use crate::sensor::SensorFault;
 /// Why the monitor declines to name a fault class.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum NoDiagnosis {
-    /// The pressure sensor reads out of range (open or short circuit).
+    /// The pressure signal cannot be trusted (out of range, or implausible statistics); the
+    /// kind says which check failed.
     SensorFault(SensorFault),
     /// The release ended before enough of it was seen.
     TooShort,
-    /// The inputs are unlike any brake the classifier knows (implausible features).
-    Implausible,
+    /// The release is unlike every release the classifier was trained on (its features lie
+    /// outside the trained region), so no class it knows can be named with confidence.
+    Unfamiliar,
 }
 
 /// The monitor's verdict on one release.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Verdict {
-    /// A fault class with the classifier's confidence (0..=255 ↔ 0..=100 %).
+    /// A fault class with the classifier's calibrated confidence.
     Class {
         /// Named class.
         class: FaultClass,
-        /// Confidence, 255 = certain.
-        confidence: u8,
+        /// Calibrated probability that the class is right, per cent (0..=100; the monitor
+        /// sends at most [`crate::classifier::MAX_CONFIDENCE_PCT`]).
+        confidence_pct: u8,
     },
     /// No class can be named, with the reason.
     CannotDiagnose(NoDiagnosis),
@@ -33,7 +36,7 @@ impl core::fmt::Display for NoDiagnosis {
         match self {
             Self::SensorFault(s) => write!(f, "sensor fault ({s})"),
             Self::TooShort => f.write_str("release too short"),
-            Self::Implausible => f.write_str("implausible inputs"),
+            Self::Unfamiliar => f.write_str("unfamiliar release"),
         }
     }
 }
@@ -42,8 +45,7 @@ impl core::fmt::Display for NoDiagnosis {
 impl core::fmt::Display for Verdict {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         match self {
-            // 255 ↔ 100 %, rounded to the nearest per cent.
-            Self::Class { class, confidence } => write!(f, "{class} {}%", (u32::from(*confidence) * 100 + 127) / 255),
+            Self::Class { class, confidence_pct } => write!(f, "{class} {confidence_pct}%"),
             Self::CannotDiagnose(why) => write!(f, "cannot diagnose: {why}"),
         }
     }
@@ -81,7 +83,7 @@ pub enum EstimatorState {
 /// Periodic status/heartbeat of the monitor.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub struct StatusReport {
-    /// Sensor health: `None` when the last reading was valid.
+    /// Sensor health: `None` when the signal is trusted, otherwise the fault the monitor sees.
     pub sensor_fault: Option<SensorFault>,
     /// Estimator state.
     pub estimator: EstimatorState,

@@ -17,13 +17,95 @@ pub const COUNTS_PER_BAR: f64 = 4095.0 * 0.08;
 /// Counts at 0 bar g: 4095 · 0.1.
 pub const COUNTS_AT_ZERO: f64 = 4095.0 * 0.1;
 
-/// Why an ADC reading is not a pressure.
+/// Why the pressure signal cannot be trusted: an ADC reading outside the transducer's range, or
+/// a signal whose statistics no working transducer on this pneumatic circuit can produce (see
+/// [`crate::plausibility`]). Never a brake fault.
+///
+/// [`Self::code`] is the number sent on CAN (`SensorHealth` of `BPM_Status` and
+/// `NoDiagnosisReason` of `BPM_FaultReport` share it).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum SensorFault {
     /// Below 0.25 V equivalent: open circuit or broken supply.
     OpenCircuit,
     /// Above 4.75 V equivalent: short to supply.
     ShortCircuit,
+    /// The reading repeats one code far longer than the transducer's noise allows after it had
+    /// shown a live signal: a frozen amplifier, ADC or driver buffer.
+    Frozen,
+    /// The reading is one constant code from the release command on: a dead channel.
+    Dead,
+    /// Sample-to-sample noise far above the transducer's (loose contact, EMI, failing supply).
+    Noisy,
+    /// Isolated outliers far from both neighbours (EMI spikes, bit errors).
+    Spikes,
+    /// Brief losses of the reading (out-of-range samples inside a valid signal).
+    Dropouts,
+    /// Low-order ADC codes never occur: the converter lost resolution (stuck low bits).
+    LostResolution,
+    /// The reading piles up at one level that is not a physical rail (amplifier clipping or
+    /// saturation).
+    Clipped,
+    /// A jump faster than the chamber's pneumatics can produce.
+    ImpossibleRate,
+    /// A level the circuit cannot reach: not at atmosphere at the release command (zero offset)
+    /// or above every regulator setting (gain error).
+    ImplausibleLevel,
+}
+
+impl SensorFault {
+    /// Every kind, in code order.
+    pub const ALL: [Self; 11] = [
+        Self::OpenCircuit,
+        Self::ShortCircuit,
+        Self::Frozen,
+        Self::Dead,
+        Self::Noisy,
+        Self::Spikes,
+        Self::Dropouts,
+        Self::LostResolution,
+        Self::Clipped,
+        Self::ImpossibleRate,
+        Self::ImplausibleLevel,
+    ];
+
+    /// CAN code (1..=2 and 5..=13; 0 is "ok", 3 and 4 are the fault report's other reasons).
+    pub const fn code(self) -> u8 {
+        match self {
+            Self::OpenCircuit => 1,
+            Self::ShortCircuit => 2,
+            Self::Frozen => 5,
+            Self::Dead => 6,
+            Self::Noisy => 7,
+            Self::Spikes => 8,
+            Self::Dropouts => 9,
+            Self::LostResolution => 10,
+            Self::Clipped => 11,
+            Self::ImpossibleRate => 12,
+            Self::ImplausibleLevel => 13,
+        }
+    }
+
+    /// The kind with CAN code `code`.
+    pub fn from_code(code: u8) -> Option<Self> {
+        Self::ALL.into_iter().find(|f| f.code() == code)
+    }
+
+    /// Stable snake_case label (CAN value tables, files, `host-sim generate --sensor-fault`).
+    pub const fn label(self) -> &'static str {
+        match self {
+            Self::OpenCircuit => "open_circuit",
+            Self::ShortCircuit => "short_circuit",
+            Self::Frozen => "frozen",
+            Self::Dead => "dead",
+            Self::Noisy => "noisy",
+            Self::Spikes => "spikes",
+            Self::Dropouts => "dropouts",
+            Self::LostResolution => "lost_resolution",
+            Self::Clipped => "clipped",
+            Self::ImpossibleRate => "impossible_rate",
+            Self::ImplausibleLevel => "implausible_level",
+        }
+    }
 }
 
 impl core::fmt::Display for SensorFault {
@@ -31,6 +113,15 @@ impl core::fmt::Display for SensorFault {
         f.write_str(match self {
             Self::OpenCircuit => "sensor open circuit (ADC below 0.25 V)",
             Self::ShortCircuit => "sensor short circuit (ADC above 4.75 V)",
+            Self::Frozen => "sensor frozen (reading repeats exactly)",
+            Self::Dead => "sensor dead (constant reading)",
+            Self::Noisy => "sensor noise far above the transducer's",
+            Self::Spikes => "spikes in the sensor signal",
+            Self::Dropouts => "sensor signal drops out",
+            Self::LostResolution => "ADC lost resolution (missing low-bit codes)",
+            Self::Clipped => "sensor signal clipped below its range",
+            Self::ImpossibleRate => "pressure changes faster than the pneumatics allow",
+            Self::ImplausibleLevel => "pressure level impossible for this circuit (offset or gain)",
         })
     }
 }

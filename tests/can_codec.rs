@@ -13,14 +13,15 @@ use proptest::prelude::*;
 
 fn verdict() -> impl Strategy<Value = Verdict> {
     prop_oneof![
-        (prop::sample::select(FaultClass::ALL.to_vec()), any::<u8>())
-            .prop_map(|(class, confidence)| Verdict::Class { class, confidence }),
-        prop::sample::select(vec![
-            NoDiagnosis::SensorFault(SensorFault::OpenCircuit),
-            NoDiagnosis::SensorFault(SensorFault::ShortCircuit),
-            NoDiagnosis::TooShort,
-            NoDiagnosis::Implausible,
-        ])
+        (prop::sample::select(FaultClass::ALL.to_vec()), 0..=100u8)
+            .prop_map(|(class, confidence_pct)| Verdict::Class { class, confidence_pct }),
+        prop::sample::select(
+            SensorFault::ALL
+                .map(NoDiagnosis::SensorFault)
+                .into_iter()
+                .chain([NoDiagnosis::TooShort, NoDiagnosis::Unfamiliar])
+                .collect::<Vec<_>>()
+        )
         .prop_map(Verdict::CannotDiagnose),
     ]
 }
@@ -37,7 +38,7 @@ fn fault_report() -> impl Strategy<Value = FaultReport> {
 
 fn status_report() -> impl Strategy<Value = StatusReport> {
     (
-        prop::sample::select(vec![None, Some(SensorFault::OpenCircuit), Some(SensorFault::ShortCircuit)]),
+        prop::sample::select(core::iter::once(None).chain(SensorFault::ALL.map(Some)).collect::<Vec<_>>()),
         prop::sample::select(vec![
             EstimatorState::Idle,
             EstimatorState::Converging,
@@ -57,7 +58,7 @@ fn status_report() -> impl Strategy<Value = StatusReport> {
 
 fn example_fault() -> FaultReport {
     FaultReport {
-        verdict: Verdict::Class { class: FaultClass::AirLeak, confidence: 230 },
+        verdict: Verdict::Class { class: FaultClass::AirLeak, confidence_pct: 90 },
         time_since_release_cs: 2_540,
         supply_mbar: 7_700,
         leak_um: 850,
@@ -202,9 +203,9 @@ fn known_answer_vectors() {
     assert_eq!(f.raw_id(), 0x18FF_5080);
     let s = encode_status(&example_status(), 9);
     assert_eq!(s.raw_id(), 0x18FF_5180);
-    // Layout by hand: diag 1 << 12 | counter 5 << 8; confidence 230 at byte 2; completed 0,
-    // reason 0; time 254 << 28; supply 1540 << 40; leak 850 << 52.
-    let bits = (1u64 << 12) | (5 << 8) | (230 << 16) | (254 << 28) | (1540 << 40) | (850 << 52);
+    // Layout by hand: diag 1 << 12 | counter 5 << 8; confidence 90 % in bits 16..23; reason 0
+    // in bits 23..27; completed 0; time 254 << 28; supply 1540 << 40; leak 850 << 52.
+    let bits = (1u64 << 12) | (5 << 8) | (90 << 16) | (254 << 28) | (1540 << 40) | (850 << 52);
     let mut payload = bits.to_le_bytes();
     payload[0] = pbm::can::codec::e2e_crc(0xFF50, &payload);
     assert_eq!(f.data(), payload);
@@ -280,7 +281,7 @@ fn reporter_schedule() {
         let active = n < 600;
         fault.time_since_release_cs = n as u16;
         if n == 300 {
-            fault.verdict = Verdict::Class { class: FaultClass::LeakAndBlock, confidence: 200 };
+            fault.verdict = Verdict::Class { class: FaultClass::LeakAndBlock, confidence_pct: 78 };
         }
         if (400..450).contains(&n) {
             fault.supply_mbar = 7_000 + 10 * n as u16;
@@ -304,7 +305,7 @@ fn reporter_schedule() {
     let (_, f) = sent.iter().find(|(n, f)| *n == 300 && f.raw_id() == FAULT_REPORT.raw_id()).unwrap();
     match decode_frame(f).unwrap().0 {
         Report::Fault(r) => {
-            assert_eq!(r.verdict, Verdict::Class { class: FaultClass::LeakAndBlock, confidence: 200 });
+            assert_eq!(r.verdict, Verdict::Class { class: FaultClass::LeakAndBlock, confidence_pct: 78 });
             assert_eq!(r.time_since_release_cs, 300);
         }
         other => panic!("{other:?}"),

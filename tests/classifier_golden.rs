@@ -38,7 +38,7 @@ fn compiled_model_matches_golden_vectors() {
         let inf = MODEL.infer(&q).expect("inference");
         assert_eq!(inf.logits[..inf.n_classes].to_vec(), ints::<i8>(fields[2], "logits"), "line {}: logits", n + 1);
         assert_eq!(inf.class.label(), fields[3].trim().strip_prefix("class ").expect("class"), "line {}", n + 1);
-        assert_eq!(vec![inf.confidence], ints::<u8>(fields[4], "conf"), "line {}: confidence", n + 1);
+        assert_eq!(vec![inf.confidence_pct], ints::<u8>(fields[4], "conf"), "line {}: confidence", n + 1);
         checked += 1;
     }
     assert!(checked >= 100, "only {checked} golden vectors");
@@ -69,9 +69,9 @@ fn monitor_diagnoses_simulated_releases() {
         monitor.update(adc_from_bar(pbm::BarG(0.0)), false); // valve closed: verdict kept
         let report = monitor.diagnosis();
         match report.verdict {
-            Verdict::Class { class, confidence } => {
+            Verdict::Class { class, confidence_pct } => {
                 assert_eq!(class, want, "{plant:?}");
-                assert!(confidence > 128, "{want}: confidence {confidence}");
+                assert!(confidence_pct > 50, "{want}: confidence {confidence_pct} %");
             }
             v => panic!("{want}: {v:?}"),
         }

@@ -170,28 +170,19 @@ pub fn verdict_label(v: &Verdict) -> String {
 }
 
 fn reason_label(why: NoDiagnosis) -> &'static str {
-    let code = match why {
-        NoDiagnosis::SensorFault(SensorFault::OpenCircuit) => reason::SENSOR_OPEN_CIRCUIT,
-        NoDiagnosis::SensorFault(SensorFault::ShortCircuit) => reason::SENSOR_SHORT_CIRCUIT,
-        NoDiagnosis::TooShort => reason::TOO_SHORT,
-        NoDiagnosis::Implausible => reason::IMPLAUSIBLE,
-    };
+    let code = pbm::can::codec::reason_code(why);
     reason::LABELS.get(usize::from(code)).copied().unwrap_or("?")
 }
 
 fn sensor_label(s: Option<SensorFault>) -> &'static str {
-    let code = match s {
-        None => sensor_health::OK,
-        Some(SensorFault::OpenCircuit) => sensor_health::OPEN_CIRCUIT,
-        Some(SensorFault::ShortCircuit) => sensor_health::SHORT_CIRCUIT,
-    };
+    let code = s.map_or(sensor_health::OK, SensorFault::code);
     sensor_health::LABELS.get(usize::from(code)).copied().unwrap_or("?")
 }
 
-/// Confidence in percent (raw 255 = 100 %).
+/// Calibrated confidence in percent.
 pub fn confidence_pct(v: &Verdict) -> Option<f64> {
     match v {
-        Verdict::Class { confidence, .. } => Some(f64::from(*confidence) * 100.0 / 255.0),
+        Verdict::Class { confidence_pct, .. } => Some(f64::from(*confidence_pct)),
         Verdict::CannotDiagnose(_) => None,
     }
 }
@@ -511,37 +502,37 @@ struct DemoRelease {
 
 fn demo_releases() -> Vec<DemoRelease> {
     let nominal = TwinParams::nominal();
-    let class = |c: FaultClass, confidence: u8| Some((12.0, Verdict::Class { class: c, confidence }));
+    let class = |c: FaultClass, confidence_pct: u8| Some((12.0, Verdict::Class { class: c, confidence_pct }));
     vec![
-        DemoRelease { params: nominal, open_s: 40.0, verdict: class(FaultClass::Normal, 250), sensor_faults: &[] },
+        DemoRelease { params: nominal, open_s: 40.0, verdict: class(FaultClass::Normal, 98), sensor_faults: &[] },
         DemoRelease {
             params: nominal.with_leak_mm(0.8),
             open_s: 40.0,
-            verdict: class(FaultClass::AirLeak, 204),
+            verdict: class(FaultClass::AirLeak, 80),
             sensor_faults: &[],
         },
         DemoRelease {
             params: nominal.with_orifice_mm(0.6),
             open_s: 60.0,
-            verdict: class(FaultClass::OrificeBlock, 191),
+            verdict: class(FaultClass::OrificeBlock, 75),
             sensor_faults: &[],
         },
         DemoRelease {
             params: nominal.with_orifice_mm(0.7).with_leak_mm(0.9),
             open_s: 60.0,
-            verdict: class(FaultClass::LeakAndBlock, 128),
+            verdict: class(FaultClass::LeakAndBlock, 50),
             sensor_faults: &[],
         },
         DemoRelease {
             params: nominal.with_supply_bar_g(5.0),
             open_s: 40.0,
-            verdict: class(FaultClass::LowSupply, 255),
+            verdict: class(FaultClass::LowSupply, 99),
             sensor_faults: &[],
         },
         DemoRelease {
             params: nominal.with_orifice_mm(3.0),
             open_s: 20.0,
-            verdict: Some((4.0, Verdict::Class { class: FaultClass::OrificeMissing, confidence: 1 })),
+            verdict: Some((4.0, Verdict::Class { class: FaultClass::OrificeMissing, confidence_pct: 1 })),
             sensor_faults: &[],
         },
         DemoRelease {
@@ -559,7 +550,7 @@ fn demo_releases() -> Vec<DemoRelease> {
         DemoRelease {
             params: nominal.with_leak_mm(2.0),
             open_s: 40.0,
-            verdict: Some((20.0, Verdict::CannotDiagnose(NoDiagnosis::Implausible))),
+            verdict: Some((20.0, Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar))),
             sensor_faults: &[],
         },
     ]
@@ -608,7 +599,7 @@ pub fn write_demo_log<S: FrameSink>(sink: S) -> Result<(u64, S)> {
 }
 
 /// Writes the codec sweep: fault reports for every verdict (each class at confidences 0, 1,
-/// 128, 254, 255 and every cannot-diagnose reason) with time, supply and leak at 0, one step,
+/// 50, 99, 100 % and every cannot-diagnose reason) with time, supply and leak at 0, one step,
 /// mid-range, the top of the range and beyond (saturating); status frames for every sensor and
 /// estimator code with pressures 0, 1, 7700, 65535 mbar. Counters run on per message, frames
 /// are 10 ms apart. Returns frames sent.
@@ -617,16 +608,12 @@ pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
     use pbm::report::EstimatorState;
     let mut verdicts: Vec<Verdict> = Vec::new();
     for class in FaultClass::ALL {
-        for confidence in [0, 1, 128, 254, 255] {
-            verdicts.push(Verdict::Class { class, confidence });
+        for confidence_pct in [0, 1, 50, 99, 100] {
+            verdicts.push(Verdict::Class { class, confidence_pct });
         }
     }
-    for why in [
-        NoDiagnosis::SensorFault(SensorFault::OpenCircuit),
-        NoDiagnosis::SensorFault(SensorFault::ShortCircuit),
-        NoDiagnosis::TooShort,
-        NoDiagnosis::Implausible,
-    ] {
+    let reasons = SensorFault::ALL.map(NoDiagnosis::SensorFault);
+    for why in reasons.into_iter().chain([NoDiagnosis::TooShort, NoDiagnosis::Unfamiliar]) {
         verdicts.push(Verdict::CannotDiagnose(why));
     }
     let times: [u16; 6] = [0, 10, 6_000, 40_950, 40_951, u16::MAX];
@@ -648,9 +635,8 @@ pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
         }
     }
     let states = [EstimatorState::Idle, EstimatorState::Converging, EstimatorState::Settled, EstimatorState::Frozen];
-    for (i, sensor_fault) in
-        [None, Some(SensorFault::OpenCircuit), Some(SensorFault::ShortCircuit)].into_iter().enumerate()
-    {
+    let healths = core::iter::once(None).chain(SensorFault::ALL.map(Some));
+    for (i, sensor_fault) in healths.enumerate() {
         for (j, estimator) in states.into_iter().enumerate() {
             for (k, pressure_mbar) in [0u16, 1, 7_700, u16::MAX].into_iter().enumerate() {
                 let version = [(0, 0), (0, 1), (255, 255), (12, 34)][(i + j + k) % 4];

@@ -179,8 +179,7 @@ pub fn write_results(w: &mut impl std::io::Write, samples: &[ReplaySample]) -> s
     for s in samples {
         let fault = match s.step.measured {
             Ok(_) => "",
-            Err(pbm::sensor::SensorFault::OpenCircuit) => "open_circuit",
-            Err(pbm::sensor::SensorFault::ShortCircuit) => "short_circuit",
+            Err(f) => f.label(),
         };
         let (measured, residual) = if s.step.measured.is_ok() {
             (format!("{:.5}", s.measured_bar()), format!("{:.5}", s.residual_bar()))

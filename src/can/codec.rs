@@ -179,7 +179,7 @@ fn quant(v: u16, per_lsb: u16) -> u64 {
 pub fn encode_fault(r: &FaultReport, counter: u8) -> CanFrame {
     let mut bits = 0u64;
     let (diag, conf, reason) = match r.verdict {
-        Verdict::Class { class, confidence } => (class as u8, confidence, l::reason::NONE),
+        Verdict::Class { class, confidence_pct } => (class as u8, confidence_pct, l::reason::NONE),
         Verdict::CannotDiagnose(why) => (l::DIAGNOSIS_CANNOT_DIAGNOSE, 0, reason_code(why)),
     };
     l::DIAGNOSIS.put(&mut bits, u64::from(diag));
@@ -196,11 +196,7 @@ pub fn encode_fault(r: &FaultReport, counter: u8) -> CanFrame {
 /// Lossless.
 pub fn encode_status(s: &StatusReport, counter: u8) -> CanFrame {
     let mut bits = 0u64;
-    let health = match s.sensor_fault {
-        None => l::sensor_health::OK,
-        Some(SensorFault::OpenCircuit) => l::sensor_health::OPEN_CIRCUIT,
-        Some(SensorFault::ShortCircuit) => l::sensor_health::SHORT_CIRCUIT,
-    };
+    let health = s.sensor_fault.map_or(l::sensor_health::OK, SensorFault::code);
     l::SENSOR_HEALTH.put(&mut bits, u64::from(health));
     l::ESTIMATOR_STATE.put(&mut bits, s.estimator as u64);
     l::CHAMBER_PRESSURE.put(&mut bits, u64::from(s.pressure_mbar));
@@ -225,12 +221,12 @@ pub fn quantize_fault(r: &FaultReport) -> FaultReport {
     }
 }
 
-fn reason_code(why: NoDiagnosis) -> u8 {
+/// `NoDiagnosisReason` code of a reason.
+pub fn reason_code(why: NoDiagnosis) -> u8 {
     match why {
-        NoDiagnosis::SensorFault(SensorFault::OpenCircuit) => l::reason::SENSOR_OPEN_CIRCUIT,
-        NoDiagnosis::SensorFault(SensorFault::ShortCircuit) => l::reason::SENSOR_SHORT_CIRCUIT,
+        NoDiagnosis::SensorFault(f) => f.code(),
         NoDiagnosis::TooShort => l::reason::TOO_SHORT,
-        NoDiagnosis::Implausible => l::reason::IMPLAUSIBLE,
+        NoDiagnosis::Unfamiliar => l::reason::UNFAMILIAR,
     }
 }
 
@@ -285,11 +281,12 @@ fn decode_fault_signals(bits: u64) -> Result<FaultReport, FrameError> {
     let reason = l::NO_DIAGNOSIS_REASON.get(bits);
     let verdict = if diag == u64::from(l::DIAGNOSIS_CANNOT_DIAGNOSE) {
         let why = match reason as u8 {
-            l::reason::SENSOR_OPEN_CIRCUIT => NoDiagnosis::SensorFault(SensorFault::OpenCircuit),
-            l::reason::SENSOR_SHORT_CIRCUIT => NoDiagnosis::SensorFault(SensorFault::ShortCircuit),
             l::reason::TOO_SHORT => NoDiagnosis::TooShort,
-            l::reason::IMPLAUSIBLE => NoDiagnosis::Implausible,
-            _ => return Err(invalid(&l::NO_DIAGNOSIS_REASON, reason)),
+            l::reason::UNFAMILIAR => NoDiagnosis::Unfamiliar,
+            code => match SensorFault::from_code(code) {
+                Some(f) => NoDiagnosis::SensorFault(f),
+                None => return Err(invalid(&l::NO_DIAGNOSIS_REASON, reason)),
+            },
         };
         if conf != 0 {
             return Err(invalid(&l::CONFIDENCE, conf));
@@ -300,7 +297,10 @@ fn decode_fault_signals(bits: u64) -> Result<FaultReport, FrameError> {
         if reason != u64::from(l::reason::NONE) {
             return Err(invalid(&l::NO_DIAGNOSIS_REASON, reason));
         }
-        Verdict::Class { class, confidence: conf as u8 }
+        if conf > u64::from(l::CONFIDENCE_MAX_PCT) {
+            return Err(invalid(&l::CONFIDENCE, conf));
+        }
+        Verdict::Class { class, confidence_pct: conf as u8 }
     };
     // Each raw value is at most 12 bits, so the products fit a u16 (4095 · 10 = 40950).
     Ok(FaultReport {
@@ -316,9 +316,7 @@ fn decode_status_signals(bits: u64) -> Result<StatusReport, FrameError> {
     let health = l::SENSOR_HEALTH.get(bits);
     let sensor_fault = match health as u8 {
         l::sensor_health::OK => None,
-        l::sensor_health::OPEN_CIRCUIT => Some(SensorFault::OpenCircuit),
-        l::sensor_health::SHORT_CIRCUIT => Some(SensorFault::ShortCircuit),
-        _ => return Err(invalid(&l::SENSOR_HEALTH, health)),
+        code => Some(SensorFault::from_code(code).ok_or(invalid(&l::SENSOR_HEALTH, health))?),
     };
     let estimator = match l::ESTIMATOR_STATE.get(bits) {
         0 => EstimatorState::Idle,

@@ -106,10 +106,11 @@ pub const FAULT_CRC: Signal = sig("FaultCrc", 0, 8, 1.0, 255.0, "");
 pub const FAULT_COUNTER: Signal = sig("FaultCounter", 8, 4, 1.0, 15.0, "");
 /// Diagnosis: `FaultClass as u8` (0..=5) or [`DIAGNOSIS_CANNOT_DIAGNOSE`].
 pub const DIAGNOSIS: Signal = sig("Diagnosis", 12, 4, 1.0, 15.0, "");
-/// Classifier confidence, raw 0..=255 ↔ 0..=100 %.
-pub const CONFIDENCE: Signal = sig("Confidence", 16, 8, CONFIDENCE_PERCENT_PER_LSB, 100.0, "%");
+/// Calibrated classifier confidence, 1 % per LSB (0..=100; the monitor sends at most
+/// [`crate::classifier::MAX_CONFIDENCE_PCT`]).
+pub const CONFIDENCE: Signal = sig("Confidence", 16, 7, 1.0, 127.0, "%");
 /// Why no class is named ([`reason`] codes; 0 when a class is named).
-pub const NO_DIAGNOSIS_REASON: Signal = sig("NoDiagnosisReason", 24, 3, 1.0, 7.0, "");
+pub const NO_DIAGNOSIS_REASON: Signal = sig("NoDiagnosisReason", 23, 4, 1.0, 15.0, "");
 /// Release completed (piston at its end stop, pressure settled).
 pub const RELEASE_COMPLETED: Signal = sig("ReleaseCompleted", 27, 1, 1.0, 1.0, "");
 /// Time since the release command, 0.1 s per LSB (saturates at 409.5 s).
@@ -121,8 +122,8 @@ pub const LEAK_DIAMETER: Signal = sig("LeakDiameter", 52, 12, 0.001, 4.095, "mm"
 
 /// Raw value of [`DIAGNOSIS`] meaning "cannot diagnose" (the reason is in [`NO_DIAGNOSIS_REASON`]).
 pub const DIAGNOSIS_CANNOT_DIAGNOSE: u8 = 15;
-/// Percent per raw LSB of [`CONFIDENCE`]: 100/255.
-pub const CONFIDENCE_PERCENT_PER_LSB: f64 = 100.0 / 255.0;
+/// Largest raw value of [`CONFIDENCE`] that means something (100 %).
+pub const CONFIDENCE_MAX_PCT: u8 = 100;
 /// Report time units (10 ms) per raw LSB of [`TIME_SINCE_RELEASE`].
 pub const TIME_CS_PER_LSB: u16 = 10;
 /// Millibar per raw LSB of [`SUPPLY_PRESSURE`].
@@ -130,20 +131,33 @@ pub const SUPPLY_MBAR_PER_LSB: u16 = 5;
 /// Micrometres per raw LSB of [`LEAK_DIAMETER`].
 pub const LEAK_UM_PER_LSB: u16 = 1;
 
-/// Codes of [`NO_DIAGNOSIS_REASON`].
+/// Codes of [`NO_DIAGNOSIS_REASON`]. A sensor fault is sent with its own code,
+/// [`SensorFault::code`](crate::sensor::SensorFault::code) (1, 2 and 5..=13), the same number
+/// `BPM_Status.SensorHealth` carries.
 pub mod reason {
     /// A class is named (no reason).
     pub const NONE: u8 = 0;
-    /// Pressure sensor open circuit.
-    pub const SENSOR_OPEN_CIRCUIT: u8 = 1;
-    /// Pressure sensor short circuit.
-    pub const SENSOR_SHORT_CIRCUIT: u8 = 2;
     /// The release ended before enough of it was seen.
     pub const TOO_SHORT: u8 = 3;
-    /// Inputs unlike any known brake.
-    pub const IMPLAUSIBLE: u8 = 4;
-    /// Labels as in the DBC `VAL_` table, indexed by code.
-    pub const LABELS: [&str; 5] = ["none", "sensor_open_circuit", "sensor_short_circuit", "too_short", "implausible"];
+    /// The release is unlike every release the classifier was trained on.
+    pub const UNFAMILIAR: u8 = 4;
+    /// Labels as in the DBC `VAL_` table, indexed by code (`""`: code not used).
+    pub const LABELS: [&str; 14] = [
+        "none",
+        "sensor_open_circuit",
+        "sensor_short_circuit",
+        "too_short",
+        "unfamiliar_release",
+        "sensor_frozen",
+        "sensor_dead",
+        "sensor_noisy",
+        "sensor_spikes",
+        "sensor_dropouts",
+        "sensor_lost_resolution",
+        "sensor_clipped",
+        "sensor_impossible_rate",
+        "sensor_implausible_level",
+    ];
 }
 
 /// The fault report frame.
@@ -172,8 +186,9 @@ pub const FAULT_REPORT: Message = Message {
 pub const STATUS_CRC: Signal = sig("StatusCrc", 0, 8, 1.0, 255.0, "");
 /// E2E rolling counter of the status frame (0..=15, wraps).
 pub const STATUS_COUNTER: Signal = sig("StatusCounter", 8, 4, 1.0, 15.0, "");
-/// Sensor health ([`sensor_health`] codes).
-pub const SENSOR_HEALTH: Signal = sig("SensorHealth", 12, 2, 1.0, 3.0, "");
+/// Sensor health: 0 = ok, otherwise the [`SensorFault::code`](crate::sensor::SensorFault::code)
+/// of the fault the monitor sees now ([`sensor_health`] labels).
+pub const SENSOR_HEALTH: Signal = sig("SensorHealth", 48, 4, 1.0, 15.0, "");
 /// Estimator state: `EstimatorState as u8`.
 pub const ESTIMATOR_STATE: Signal = sig("EstimatorState", 14, 2, 1.0, 3.0, "");
 /// Last measured chamber pressure, 1 mbar per LSB.
@@ -185,14 +200,25 @@ pub const FIRMWARE_MINOR: Signal = sig("FirmwareMinor", 40, 8, 1.0, 255.0, "");
 
 /// Codes of [`SENSOR_HEALTH`].
 pub mod sensor_health {
-    /// Last reading valid.
+    /// No sensor fault.
     pub const OK: u8 = 0;
-    /// Open circuit.
-    pub const OPEN_CIRCUIT: u8 = 1;
-    /// Short circuit.
-    pub const SHORT_CIRCUIT: u8 = 2;
-    /// Labels as in the DBC `VAL_` table, indexed by code.
-    pub const LABELS: [&str; 3] = ["ok", "open_circuit", "short_circuit"];
+    /// Labels as in the DBC `VAL_` table, indexed by code (`""`: code not used).
+    pub const LABELS: [&str; 14] = [
+        "ok",
+        "open_circuit",
+        "short_circuit",
+        "",
+        "",
+        "frozen",
+        "dead",
+        "noisy",
+        "spikes",
+        "dropouts",
+        "lost_resolution",
+        "clipped",
+        "impossible_rate",
+        "implausible_level",
+    ];
 }
 
 /// Labels of [`ESTIMATOR_STATE`] as in the DBC `VAL_` table, indexed by `EstimatorState as u8`.
@@ -208,11 +234,11 @@ pub const STATUS: Message = Message {
     signals: &[
         STATUS_CRC,
         STATUS_COUNTER,
-        SENSOR_HEALTH,
         ESTIMATOR_STATE,
         CHAMBER_PRESSURE,
         FIRMWARE_MAJOR,
         FIRMWARE_MINOR,
+        SENSOR_HEALTH,
     ],
 };
 
@@ -237,7 +263,7 @@ mod tests {
             assert_eq!(m.signals[1].start_bit, 8, "counter in the low nibble of byte 1");
         }
         assert_eq!(FAULT_REPORT.reserved_mask(), 0);
-        assert_eq!(STATUS.reserved_mask(), 0xFFFF << 48);
+        assert_eq!(STATUS.reserved_mask(), (0b11 << 12) | (0xFFF << 52));
     }
 
     #[test]

@@ -10,7 +10,7 @@
 //!   `roundf`, never contracted to a fused multiply-add: the same bits on x86 and on the
 //!   Cortex-M4F's FPU, with no `f64` soft-float in the firmware). A value more than [`PLAUSIBLE_MARGIN`] of the training range outside
 //!   that range (per feature, calibrated on the training set) is unlike anything seen in training:
-//!   [`NoDiagnosis::Implausible`]. Otherwise `q` saturates to ±127.
+//!   [`NoDiagnosis::Unfamiliar`]. Otherwise `q` saturates to ±127.
 //! - **Layers**: int8 weights (per-output-channel scales for hidden layers, one scale for the
 //!   output layer), int32 bias and accumulator, requantization `rshr(acc · m, 31 + shift)` with
 //!   a Q31 multiplier `m`, ReLU, saturation to 0..=127. Everything is integer: bit-identical on
@@ -39,6 +39,10 @@ pub const PLAUSIBLE_MARGIN: f32 = 0.25;
 pub const MIN_RELEASE_S: f32 = 1.0;
 /// Largest share of sensor-fault samples (per mille) tolerated in a release.
 pub const MAX_FAULTY_PERMILLE: u32 = 10;
+/// Highest confidence the monitor sends, per cent. A calibrated probability is only as good as
+/// the held-out data it was fitted on (a few thousand releases): claiming 100 % would say the
+/// model is never wrong, which no finite evidence supports.
+pub const MAX_CONFIDENCE_PCT: u8 = 99;
 
 /// One int8 dense layer.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -102,8 +106,8 @@ pub struct Inference {
     pub logits: [i8; MAX_CLASSES],
     /// Number of classes.
     pub n_classes: usize,
-    /// Softmax probability of the winner, 0..=255.
-    pub confidence: u8,
+    /// Softmax probability of the winner, per cent (0..=100, rounded down).
+    pub confidence_pct: u8,
 }
 
 impl QuantModel<'_> {
@@ -213,8 +217,8 @@ impl QuantModel<'_> {
         let top = logits[..n].iter().copied().max().unwrap_or(0);
         let exp = |l: i8| self.exp_table.get((i32::from(top) - i32::from(l)) as usize).copied().unwrap_or(0);
         let sum: u32 = logits[..n].iter().map(|&l| u32::from(exp(l))).sum();
-        let confidence = (255 * 65_535u32).checked_div(sum).map_or(0, |c| c.min(255) as u8);
-        Ok(Inference { index, class: self.classes[index], logits, n_classes: n, confidence })
+        let confidence_pct = (100 * 65_535u32).checked_div(sum).map_or(0, |c| c.min(100) as u8);
+        Ok(Inference { index, class: self.classes[index], logits, n_classes: n, confidence_pct })
     }
 
     /// Quantizes `x` (narrowed to `f32`, see [`Self::quantize_input`]) and runs the network.
@@ -245,7 +249,7 @@ pub fn diagnose(features: &impl AsRef<ReleaseFeatures>) -> Verdict {
 ///    samples, is [`NoDiagnosis::SensorFault`];
 /// 2. less than [`MIN_RELEASE_S`] of release is [`NoDiagnosis::TooShort`];
 /// 3. features outside the plausible range (or a model that does not fit them) are
-///    [`NoDiagnosis::Implausible`];
+///    [`NoDiagnosis::Unfamiliar`];
 /// 4. otherwise the network's class and confidence.
 pub fn diagnose_with(model: &QuantModel<'_>, features: &ReleaseFeatures) -> Verdict {
     let faulty = u64::from(features.faulty_samples()) * 1000;
@@ -261,11 +265,11 @@ pub fn diagnose_with(model: &QuantModel<'_>, features: &ReleaseFeatures) -> Verd
         return Verdict::CannotDiagnose(NoDiagnosis::TooShort);
     }
     if model.n_inputs() != N_OURS {
-        return Verdict::CannotDiagnose(NoDiagnosis::Implausible);
+        return Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar);
     }
     match model.classify_f32(&features.ours()) {
-        Ok(inf) => Verdict::Class { class: inf.class, confidence: inf.confidence },
-        Err(_) => Verdict::CannotDiagnose(NoDiagnosis::Implausible),
+        Ok(inf) => Verdict::Class { class: inf.class, confidence_pct: inf.confidence_pct.min(MAX_CONFIDENCE_PCT) },
+        Err(_) => Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar),
     }
 }
 
@@ -319,7 +323,7 @@ mod tests {
         // logits: 100·13 = 1300 → /2 = 650 → saturates at 127; 0.
         assert_eq!(&inf.logits[..2], &[127, 0]);
         assert_eq!((inf.index, inf.class), (0, FaultClass::Normal));
-        assert_eq!(inf.confidence, 255, "exp table says the loser has probability 0");
+        assert_eq!(inf.confidence_pct, 100, "exp table says the loser has probability 0");
         let inf = TOY.classify(&[0.0, 1.0]).unwrap();
         assert_eq!(inf.class, FaultClass::AirLeak);
     }
@@ -366,6 +370,6 @@ mod tests {
         assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::TooShort));
         // A chamber that jumps to 9 bar and stays there is no brake of the training set.
         let fx = release(|_| adc_from_bar(BarG(9.0)), 6000);
-        assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::Implausible));
+        assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar));
     }
 }

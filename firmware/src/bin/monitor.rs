@@ -46,7 +46,6 @@ use embedded_can::blocking::Can as _;
 use pbm::can::CanFrame;
 use pbm::pipeline::Pipeline;
 use pbm::report::{FaultReport, NoDiagnosis, Verdict};
-use pbm::sensor::SensorFault;
 use pbm::AdcCounts;
 use pbm_firmware::adc::{PressureAdc, TraceAdc, TraceValve, ValveCommand, ADC_TRACE, ADC_TRACE_NAME};
 use pbm_firmware::candump::CandumpCan;
@@ -181,17 +180,12 @@ async fn adc_task(mut adc: TraceAdc, mut valve: TraceValve) {
 fn log_report(sample: u32, why: &str, r: &FaultReport) {
     let mut t = Text::new().str("monitor: diagnosis closed (").str(why).str(") at sample ").u32(sample).str(": ");
     t = match r.verdict {
-        Verdict::Class { class, confidence } => {
-            t.str(class.label()).str(" (confidence ").u32(confidence.into()).str("/255)")
+        Verdict::Class { class, confidence_pct } => {
+            t.str(class.label()).str(" (confidence ").u32(confidence_pct.into()).str(" %)")
         }
-        Verdict::CannotDiagnose(NoDiagnosis::SensorFault(SensorFault::OpenCircuit)) => {
-            t.str("cannot diagnose: sensor open circuit")
-        }
-        Verdict::CannotDiagnose(NoDiagnosis::SensorFault(SensorFault::ShortCircuit)) => {
-            t.str("cannot diagnose: sensor short circuit")
-        }
+        Verdict::CannotDiagnose(NoDiagnosis::SensorFault(f)) => t.str("cannot diagnose: sensor ").str(f.label()),
         Verdict::CannotDiagnose(NoDiagnosis::TooShort) => t.str("cannot diagnose: release too short"),
-        Verdict::CannotDiagnose(NoDiagnosis::Implausible) => t.str("cannot diagnose: implausible features"),
+        Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar) => t.str("cannot diagnose: unfamiliar release"),
     };
     t.str(", supply ")
         .u32(r.supply_mbar.into())
