@@ -7,6 +7,8 @@
 //! - [`params`]: physical parameters (SPEC §3) and constants (SPEC §2).
 //! - [`twin`]: the fixed-point digital twin of the release.
 //! - [`sensor`]: the pressure transducer and ADC map (SPEC §5).
+//! - [`plausibility`]: real-time checks that the pressure signal is one a working transducer
+//!   can produce (frozen, dead, noisy, spikes, dropouts, lost resolution, clipping, rates, levels).
 //! - [`fault`]: fault classes (SPEC §4).
 //! - [`metrics`]: NMSE (SPEC §6).
 //! - [`monitor`]: the per-sample pipeline (ADC in, reports out).
@@ -33,6 +35,7 @@ pub mod metrics;
 pub mod monitor;
 pub mod params;
 pub mod pipeline;
+pub mod plausibility;
 pub mod report;
 pub mod reservoir;
 pub mod sensor;

@@ -5,9 +5,10 @@
 //! its current estimates, [`Monitor::status`] its state, and [`Monitor::fault_report`] fills the
 //! estimated supply and leak of a [`FaultReport`] around a verdict from the classifier.
 
-use crate::estimator::{Estimates, EstimatorConfig, EstimatorError, ReleaseEstimator};
+use crate::estimator::{Estimates, EstimatorConfig, ReleaseEstimator};
 use crate::params::{ParamError, TwinParams};
-use crate::report::{FaultReport, StatusReport, Verdict};
+use crate::plausibility::{Detected, SignalCheck};
+use crate::report::{FaultReport, NoDiagnosis, StatusReport, Verdict};
 use crate::sensor::{pressure_from_adc, SensorFault};
 use crate::twin::{Twin, TwinSample};
 use crate::units::{AdcCounts, PressureQ24};
@@ -18,8 +19,11 @@ pub const VERSION: (u8, u8) = (0, 1);
 /// What one monitor step produced.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MonitorStep {
-    /// Measured chamber pressure, or why the reading is not one.
+    /// Measured chamber pressure, or why the reading is not one (range check of this sample).
     pub measured: Result<PressureQ24, SensorFault>,
+    /// Why the signal cannot be trusted now: this sample's range fault, else the plausibility
+    /// fault latched since the release command ([`crate::plausibility`]); `None` when trusted.
+    pub sensor: Option<SensorFault>,
     /// The twin's prediction for this sample.
     pub twin: TwinSample,
     /// Measured − twin, Q7.24 bar (0 when the reading is a sensor fault).
@@ -37,6 +41,10 @@ pub struct Monitor {
     valve_was_open: bool,
     samples_since_release: u32,
     last_measured: Result<PressureQ24, SensorFault>,
+    /// Plausibility checks of the signal.
+    check: SignalCheck,
+    /// What the checks said about the last sample.
+    last_sensor: Option<SensorFault>,
     estimator: ReleaseEstimator,
     /// Online features of the current (or last) release, for the classifier.
     features: crate::features::ReleaseFeatures,
@@ -72,6 +80,8 @@ impl Monitor {
             valve_was_open: false,
             samples_since_release: 0,
             last_measured: Ok(PressureQ24::ATMOSPHERE),
+            check: SignalCheck::new(),
+            last_sensor: None,
             estimator,
             features: crate::features::ReleaseFeatures::new(),
         }
@@ -89,6 +99,7 @@ impl Monitor {
         }
         let twin = TwinSample { pressure: PressureQ24(self.twin.state().p_q24), travel_q32: self.twin.state().x_q32 };
         let measured = pressure_from_adc(adc);
+        let sensor = self.check.update(adc, valve_open);
         let residual_q24 = match measured {
             Ok(p) => p.0.saturating_sub(twin.pressure.0),
             Err(_) => 0,
@@ -98,6 +109,7 @@ impl Monitor {
         let _ = self.estimator.update(measured.ok(), valve_open);
         let step = MonitorStep {
             measured,
+            sensor,
             twin,
             residual_q24,
             samples_since_release: if valve_open { self.samples_since_release } else { 0 },
@@ -113,7 +125,14 @@ impl Monitor {
         }
         self.valve_was_open = valve_open;
         self.last_measured = measured;
+        self.last_sensor = sensor;
         step
+    }
+
+    /// The release command ended without a falling edge being seen (e.g. the input stopped):
+    /// the next sample with the command on starts a new release, as after a falling edge.
+    pub fn end_release(&mut self) {
+        self.valve_was_open = false;
     }
 
     /// The status/heartbeat report for the current state.
@@ -126,7 +145,7 @@ impl Monitor {
             Err(_) => 0,
         };
         StatusReport {
-            sensor_fault: self.last_measured.err(),
+            sensor_fault: self.last_sensor,
             estimator: self.estimator.state(),
             pressure_mbar,
             version: VERSION,
@@ -138,9 +157,14 @@ impl Monitor {
         &self.estimator
     }
 
-    /// The last error the estimator reported in this release (`None`: all clean).
-    pub fn estimator_error(&self) -> Option<EstimatorError> {
-        self.estimator.last_error()
+    /// Samples seen with the release command on since the last command (kept after it ends).
+    pub fn samples_in_release(&self) -> u32 {
+        self.samples_since_release
+    }
+
+    /// The sensor fault latched since the last release command, with its onset.
+    pub fn sensor_fault(&self) -> Option<Detected> {
+        self.check.latched()
     }
 
     /// Online features of the current (or last) release.
@@ -149,11 +173,15 @@ impl Monitor {
     }
 
     /// The fault report of the current (or last) release with the classifier compiled into the
-    /// core: a class, or 'cannot diagnose' (sensor fault, too short, implausible features).
-    /// Valid at any time since the release command (early diagnosis); send it when the release
-    /// completes or at a timeout.
+    /// core: a class, or 'cannot diagnose' (a sensor fault found by the range or plausibility
+    /// checks, too short, unfamiliar release). Valid at any time since the release command
+    /// (early diagnosis); send it when the release completes or at a timeout.
     pub fn diagnosis(&self) -> FaultReport {
-        self.fault_report(crate::classifier::diagnose(&self.features))
+        let verdict = match self.check.latched() {
+            Some(d) => Verdict::CannotDiagnose(NoDiagnosis::SensorFault(d.fault)),
+            None => crate::classifier::diagnose(&self.features),
+        };
+        self.fault_report(verdict)
     }
 
     /// A fault report for `verdict` (from the classifier) with the time since the release and

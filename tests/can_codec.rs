@@ -225,12 +225,15 @@ fn invalid_signal_values_with_good_crc_are_flagged() {
         p[0] = pbm::can::codec::e2e_crc(data_id, &p);
         CanFrame::new_extended(id, &p).unwrap()
     };
-    let cases: [(u32, u16, u64, &str); 6] = [
+    let cases: [(u32, u16, u64, &str); 9] = [
         (FAULT_REPORT.raw_id(), 0xFF50, 6 << 12, "Diagnosis"),
-        (FAULT_REPORT.raw_id(), 0xFF50, 15 << 12 | 5 << 24, "NoDiagnosisReason"),
+        (FAULT_REPORT.raw_id(), 0xFF50, 15 << 12 | 14 << 23, "NoDiagnosisReason"),
+        (FAULT_REPORT.raw_id(), 0xFF50, 1 << 12 | 5 << 23, "NoDiagnosisReason"),
         (FAULT_REPORT.raw_id(), 0xFF50, 15 << 12, "NoDiagnosisReason"),
-        (FAULT_REPORT.raw_id(), 0xFF50, 15 << 12 | 3 << 24 | 7 << 16, "Confidence"),
-        (STATUS.raw_id(), 0xFF51, 3 << 12, "SensorHealth"),
+        (FAULT_REPORT.raw_id(), 0xFF50, 15 << 12 | 3 << 23 | 7 << 16, "Confidence"),
+        (FAULT_REPORT.raw_id(), 0xFF50, 2 << 12 | 101 << 16, "Confidence"),
+        (STATUS.raw_id(), 0xFF51, 3 << 48, "SensorHealth"),
+        (STATUS.raw_id(), 0xFF51, 1 << 12, "reserved"),
         (STATUS.raw_id(), 0xFF51, 1 << 60, "reserved"),
     ];
     for (id, data_id, bits, name) in cases {

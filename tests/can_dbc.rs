@@ -90,8 +90,10 @@ fn value_tables_match_the_code() {
     diagnosis.push((i64::from(layout::DIAGNOSIS_CANNOT_DIAGNOSE), "cannot_diagnose".into()));
     assert_eq!(table(&layout::FAULT_REPORT, layout::DIAGNOSIS.name), diagnosis);
 
-    let labels =
-        |l: &[&str]| -> Vec<(i64, String)> { l.iter().enumerate().map(|(i, s)| (i as i64, s.to_string())).collect() };
+    // Codes whose label is empty are not used (no VAL_ entry).
+    let labels = |l: &[&str]| -> Vec<(i64, String)> {
+        l.iter().enumerate().filter(|(_, s)| !s.is_empty()).map(|(i, s)| (i as i64, s.to_string())).collect()
+    };
     assert_eq!(table(&layout::FAULT_REPORT, layout::NO_DIAGNOSIS_REASON.name), labels(&layout::reason::LABELS));
     assert_eq!(table(&layout::STATUS, layout::SENSOR_HEALTH.name), labels(&layout::sensor_health::LABELS));
     assert_eq!(table(&layout::STATUS, layout::ESTIMATOR_STATE.name), labels(&layout::ESTIMATOR_STATE_LABELS));
@@ -141,7 +143,7 @@ fn codec_resolutions_agree_with_the_dbc_factors() {
         (&layout::FAULT_REPORT, layout::TIME_SINCE_RELEASE.name, f64::from(layout::TIME_CS_PER_LSB) * 0.01, "s"),
         (&layout::FAULT_REPORT, layout::SUPPLY_PRESSURE.name, f64::from(layout::SUPPLY_MBAR_PER_LSB) * 0.001, "bar"),
         (&layout::FAULT_REPORT, layout::LEAK_DIAMETER.name, f64::from(layout::LEAK_UM_PER_LSB) * 0.001, "mm"),
-        (&layout::FAULT_REPORT, layout::CONFIDENCE.name, 100.0 / 255.0, "%"),
+        (&layout::FAULT_REPORT, layout::CONFIDENCE.name, 1.0, "%"),
         // StatusReport::pressure_mbar is sent as is.
         (&layout::STATUS, layout::CHAMBER_PRESSURE.name, 0.001, "bar"),
     ];

@@ -61,9 +61,19 @@ fn monitor_diagnoses_simulated_releases() {
     ] {
         let mut twin = Twin::new(&plant).unwrap();
         let mut monitor = Monitor::new(&TwinParams::nominal()).unwrap();
+        // Transducer noise (SPEC §5: σ = 0.01 bar; a sum of four uniforms from a fixed LCG):
+        // a noise-free reading is a frozen sensor to the monitor's plausibility checks.
+        let mut lcg = 7u32;
+        let mut noise = move || {
+            (0..4).fold(0.0, |acc, _| {
+                lcg = lcg.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                acc + f64::from(lcg >> 8) / f64::from(1u32 << 24) - 0.5
+            }) * 0.01
+                * 3f64.sqrt()
+        };
         for _ in 0..6000 {
             let p = pbm::PressureQ24(twin.state().p_q24).to_bar_g();
-            monitor.update(adc_from_bar(p), true);
+            monitor.update(adc_from_bar(pbm::BarG(p.0 + noise())), true);
             twin.update(true);
         }
         monitor.update(adc_from_bar(pbm::BarG(0.0)), false); // valve closed: verdict kept

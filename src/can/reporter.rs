@@ -6,8 +6,9 @@
 //!   first sample;
 //! - fault report: at once when a report appears or its content changes (verdict, confidence,
 //!   reason, completed flag, or supply/leak at CAN resolution; the time field alone is not a
-//!   change), but at most once per [`FAULT_MIN_GAP_SAMPLES`] (10 Hz) so a converging estimate
-//!   cannot flood the bus; a change inside the gap is sent when the gap ends. While a release
+//!   change), but at most once per [`FAULT_MIN_GAP_SAMPLES`] (10 Hz) whatever the inputs do —
+//!   a converging estimate or a chattering valve command cannot flood the bus; a change inside
+//!   the gap is sent when the gap ends (only the newest report: a superseded one is dropped). While a release
 //!   is active the current report is repeated every [`FAULT_REPEAT_SAMPLES`] samples (1 Hz)
 //!   so a display that joins late, or lost a frame, catches up. After the release it is not
 //!   repeated: the display holds the last report.
@@ -64,7 +65,13 @@ pub struct CanReporter {
 impl CanReporter {
     /// A reporter that has sent nothing yet (both counters start at 0).
     pub const fn new() -> Self {
-        Self { status_countdown: 0, status_counter: 0, fault_counter: 0, last_fault_key: None, samples_since_fault: 0 }
+        Self {
+            status_countdown: 0,
+            status_counter: 0,
+            fault_counter: 0,
+            last_fault_key: None,
+            samples_since_fault: FAULT_MIN_GAP_SAMPLES,
+        }
     }
 
     /// A new release command: the next fault report belongs to a new diagnosis and is sent at
@@ -79,9 +86,12 @@ impl CanReporter {
         let mut out = Outbox::empty();
         if let Some(report) = fault {
             let key = FaultReport { time_since_release_cs: 0, ..quantize_fault(report) };
+            // The 10 Hz bound holds for every report, including the first of a new release:
+            // a chattering valve command cannot push reports faster than that.
+            let gap_done = self.samples_since_fault >= FAULT_MIN_GAP_SAMPLES;
             let due = match self.last_fault_key {
-                None => true,
-                Some(last) if last != key => self.samples_since_fault >= FAULT_MIN_GAP_SAMPLES,
+                None => gap_done,
+                Some(last) if last != key => gap_done,
                 Some(_) => release_active && self.samples_since_fault >= FAULT_REPEAT_SAMPLES,
             };
             if due {
