@@ -8,7 +8,9 @@
 //!   (`t_s,p_bar`) are converted by the host tools first. The build fails with the file and line
 //!   of anything else.
 //! - unset: the nominal release of the core's own twin, read through the SPEC's sensor map
-//!   without noise (`pbm::sensor::adc_from_bar`), 60 s.
+//!   (`pbm::sensor::adc_from_bar`) with transducer noise of σ ≈ 0.01 bar (SPEC §5) from a fixed
+//!   generator, 60 s. The noise matters: a noise-free reading is a frozen sensor to the
+//!   monitor's plausibility checks, and the bench must time the classification.
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -21,10 +23,21 @@ const MAX_SAMPLES: usize = 60_000;
 fn nominal_trace() -> Vec<u16> {
     let mut twin = pbm::Twin::new(&pbm::TwinParams::nominal()).expect("nominal parameters are valid");
     let mut p = pbm::PressureQ24::ATMOSPHERE;
+    // Sum of four uniforms from a fixed LCG, scaled to σ = 0.01 bar: reproducible noise.
+    let mut lcg = 20_231u32;
+    let mut noise = move || {
+        let sum: f64 = (0..4)
+            .map(|_| {
+                lcg = lcg.wrapping_mul(1_103_515_245).wrapping_add(12_345);
+                f64::from(lcg >> 8) / f64::from(1u32 << 24) - 0.5
+            })
+            .sum();
+        sum * 0.01 * 3f64.sqrt()
+    };
     (0..DEFAULT_SAMPLES)
         .map(|_| {
             // Sample n is the chamber after n twin updates (the monitor's convention).
-            let adc = pbm::sensor::adc_from_bar(p.to_bar_g()).0;
+            let adc = pbm::sensor::adc_from_bar(pbm::BarG(p.to_bar_g().0 + noise())).0;
             p = twin.update(true).pressure;
             adc
         })

@@ -59,6 +59,8 @@ pub const STEP_MIN_CODES: u16 = 98;
 pub const STEP_PER_MEAN_D2: u32 = 6;
 /// Samples over which the 0.1 s rate is taken.
 pub const RATE_SPAN: usize = 10;
+/// Codes kept for the rate check (a power of two ≥ [`RATE_SPAN`] + 2, so indexing is a mask).
+const RING: usize = 16;
 /// Largest change over [`RATE_SPAN`] samples while the release command is on, codes: 1.2 bar in
 /// 0.1 s (12 bar/s, 1.5 × the fastest fill of a missing orifice).
 pub const RATE_MAX_CODES: u16 = 393;
@@ -103,7 +105,7 @@ pub struct SignalCheck {
     closed_for: u32,
     valve_was_open: bool,
     /// The last valid codes, newest at `ring[head]`.
-    ring: [u16; RATE_SPAN + 2],
+    ring: [u16; RING],
     head: usize,
     /// Valid codes in `ring` (up to its length).
     filled: usize,
@@ -154,7 +156,7 @@ impl SignalCheck {
             index: 0,
             closed_for: 0,
             valve_was_open: false,
-            ring: [0; RATE_SPAN + 2],
+            ring: [0; RING],
             head: 0,
             filled: 0,
             last_out_of_range: false,
@@ -191,8 +193,7 @@ impl SignalCheck {
         if back >= self.filled {
             return None;
         }
-        let i = (self.head + self.ring.len() - back) % self.ring.len();
-        self.ring.get(i).copied()
+        self.ring.get(self.head.wrapping_sub(back) & (RING - 1)).copied()
     }
 
     fn latch(&mut self, fault: SensorFault, onset: u32) {
@@ -265,11 +266,11 @@ impl SignalCheck {
     fn push(&mut self, c: u16, valve_open: bool) {
         let prev = self.code(0);
         let prev2 = self.code(1);
-        self.head = (self.head + 1) % self.ring.len();
+        self.head = (self.head + 1) & (RING - 1);
         if let Some(slot) = self.ring.get_mut(self.head) {
             *slot = c;
         }
-        self.filled = (self.filled + 1).min(self.ring.len());
+        self.filled = (self.filled + 1).min(RING);
         let now = self.index;
 
         // Frozen or dead: a run of identical codes.

@@ -20,6 +20,7 @@ use pbm::can::{CanFrame, Decoder, FrameError, Report};
 use pbm::monitor::Monitor;
 use pbm::report::{FaultReport, NoDiagnosis, StatusReport, Verdict};
 use pbm::sensor::{adc_from_bar, SensorFault};
+use rand_core::SeedableRng;
 use pbm::{AdcCounts, BarG, FaultClass, TwinParams};
 use std::collections::BTreeMap;
 use std::io::{BufRead, Write};
@@ -568,7 +569,10 @@ pub fn write_demo_log<S: FrameSink>(sink: S) -> Result<(u64, S)> {
     let mut rec = CanRecorder::new(sink);
     let mut sample: u64 = 0;
     let mut frames = 0u64;
-    let idle_adc = adc_from_bar(BarG(0.0));
+    // Transducer noise (SPEC §5, σ = 0.01 bar) from a fixed seed: a noise-free reading would
+    // be a frozen sensor on the status frame.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2023);
+    let mut noisy_adc = move |p: f64| adc_from_bar(BarG(p + 0.01 * crate::generate::normal_pair(&mut rng).0));
     for r in demo_releases() {
         let trace = simulate(Engine::Fixed, &r.params, r.open_s).map_err(|e| anyhow::anyhow!("demo twin: {e}"))?;
         let mut verdict: Option<Verdict> = None;
@@ -576,7 +580,7 @@ pub fn write_demo_log<S: FrameSink>(sink: S) -> Result<(u64, S)> {
         for i in 0..trace.len() + idle {
             let open = i < trace.len();
             let t_rel = i as f64 * pbm::twin::SAMPLE_PERIOD_S;
-            let mut adc = trace.get(i).map_or(idle_adc, |s| adc_from_bar(BarG(s.p_bar)));
+            let mut adc = noisy_adc(trace.get(i).map_or(0.0, |s| s.p_bar));
             if let Some(&(_, _, counts)) = r.sensor_faults.iter().find(|(a, b, _)| (*a..*b).contains(&t_rel)) {
                 adc = AdcCounts(counts);
             }
