@@ -167,9 +167,10 @@ fn seal(msg: &Message, counter_sig: &Signal, crc_sig: &Signal, mut bits: u64, co
     CanFrame::from_extended(msg.id, payload)
 }
 
-/// Rounded division of a `u16` by a small constant, as a raw signal value.
+/// Rounded division of a `u16` by a small constant, as a raw signal value. In `u32`: a 64-bit
+/// division would link the Cortex-M's software `u64` divide (≈ 0.9 KiB of flash).
 fn quant(v: u16, per_lsb: u16) -> u64 {
-    (u64::from(v) + u64::from(per_lsb / 2)) / u64::from(per_lsb.max(1))
+    u64::from((u32::from(v) + u32::from(per_lsb / 2)) / u32::from(per_lsb.max(1)))
 }
 
 /// Encodes a fault report with the given rolling counter (only its low 4 bits are used).

@@ -48,14 +48,9 @@ impl Cursor<'_> {
     }
 
     /// `v` in decimal, zero-padded to at least `min_digits` (at most 20) digits.
-    fn decimal(&mut self, mut v: u64, min_digits: usize) -> Option<()> {
+    fn decimal(&mut self, v: u64, min_digits: usize) -> Option<()> {
         let mut digits = [b'0'; 20];
-        let mut n = 0;
-        while v != 0 || n == 0 {
-            *digits.get_mut(19 - n)? = b'0' + (v % 10) as u8;
-            v /= 10;
-            n += 1;
-        }
+        let n = decimal_digits(v, &mut digits);
         let n = n.max(min_digits).min(20);
         self.bytes(digits.get(20 - n..)?)
     }
@@ -68,6 +63,28 @@ impl Cursor<'_> {
         }
         Some(())
     }
+}
+
+/// Writes the decimal digits of `v` right-aligned into `out` and returns how many there are
+/// (at least one). Divides by 10 in 16-bit chunks with `u32` arithmetic, so the firmware links
+/// no software 64-bit division.
+fn decimal_digits(mut v: u64, out: &mut [u8; 20]) -> usize {
+    let mut n = 0;
+    while v != 0 || n == 0 {
+        let mut rem = 0u32;
+        let mut q = 0u64;
+        for shift in [48u32, 32, 16, 0] {
+            let cur = (rem << 16) | ((v >> shift) as u32 & 0xFFFF);
+            q |= u64::from(cur / 10) << shift;
+            rem = cur % 10;
+        }
+        if let Some(d) = out.get_mut(19 - n) {
+            *d = b'0' + rem as u8;
+        }
+        v = q;
+        n += 1;
+    }
+    n
 }
 
 /// Runs `encode` on a stack buffer of `N` bytes and hands the text to a formatter.
@@ -87,10 +104,13 @@ pub struct Time(pub u64);
 
 impl Time {
     fn put(self, c: &mut Cursor<'_>) -> Option<()> {
+        // All digits of the µs count at once, the point placed before the last six.
+        let mut digits = [b'0'; 20];
+        let n = decimal_digits(self.0, &mut digits).max(16);
         c.byte(b'(')?;
-        c.decimal(self.0 / 1_000_000, 10)?;
+        c.bytes(digits.get(20 - n..14)?)?;
         c.byte(b'.')?;
-        c.decimal(self.0 % 1_000_000, 6)?;
+        c.bytes(digits.get(14..)?)?;
         c.byte(b')')
     }
 
