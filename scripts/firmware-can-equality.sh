@@ -4,7 +4,8 @@
 # same time stamps: both stamp sample n at n x 10 ms with pbm::pipeline::candump).
 #
 # Traces: the 6 test and 6 `_0000` training traces of tests/data/small (all six classes), the
-# sensor-fault trace tests/data/sensor_fault/normal_open_circuit.csv (3 s open circuit), and
+# sensor-fault traces of tests/data/sensor_fault (open circuit, frozen, spikes, lost bits,
+# noisy, clipped: every kind of plausibility check that closes a diagnosis), and
 # one release cut at 15 s (made here from a small-set trace), so that the end of the input, not
 # the 60 s window, closes the diagnosis (Pipeline::close).
 #
@@ -37,7 +38,7 @@ TRACES=()
 for class in normal air_leak orifice_block leak_and_block low_supply orifice_missing; do
     TRACES+=("tests/data/small/traces/test/${class}_0000.csv" "tests/data/small/traces/train/${class}_0000.csv")
 done
-TRACES+=("tests/data/sensor_fault/normal_open_circuit.csv")
+TRACES+=(tests/data/sensor_fault/*.csv)
 # A release cut short: metadata, header and the first 1500 samples (15 s) of a small-set trace.
 SHORT="$WORK/orifice_block_cut_15s.csv"
 awk '/^#/ || /^t_s/ {print; next} {if (++n > 1500) exit; print}' \

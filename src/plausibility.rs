@@ -21,8 +21,10 @@
 //!
 //! # Latching and onset
 //!
-//! The first fault found after a release command is *latched* until the next command, with the
-//! sample at which its evidence began (its *onset*, e.g. the first sample of a frozen run), so
+//! The first fault found after a release command is *latched* until the next command (a later,
+//! more specific finding may rename it: a run of one code that turns out to come from a
+//! converter without its low bits is lost resolution), with the sample at which its evidence
+//! began (its *onset*, e.g. the first sample of a frozen run), so
 //! the monitor can tell whether a diagnosis closed before the fault began (see
 //! [`crate::pipeline`]). Detection comes after the onset by at most the check's window: 0.5 s
 //! for a frozen run, 1 s for noise, 2.56 s for lost resolution.
@@ -315,6 +317,13 @@ impl SignalCheck {
             if self.toggle_n >= RESOLUTION_WINDOW {
                 if self.toggled != 0 && self.toggled & 1 == 0 {
                     self.latch(SensorFault::LostResolution, self.toggle_start);
+                    // A coarse converter holds one code for a long time on a slow signal, which
+                    // the run check saw first: name the more specific cause, keep the onset.
+                    if let Some(d) = self.latched.as_mut() {
+                        if matches!(d.fault, SensorFault::Dead | SensorFault::Frozen) {
+                            d.fault = SensorFault::LostResolution;
+                        }
+                    }
                 }
                 self.toggled = 0;
                 self.toggle_n = 0;

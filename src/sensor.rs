@@ -111,17 +111,17 @@ impl SensorFault {
 impl core::fmt::Display for SensorFault {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         f.write_str(match self {
-            Self::OpenCircuit => "sensor open circuit (ADC below 0.25 V)",
-            Self::ShortCircuit => "sensor short circuit (ADC above 4.75 V)",
-            Self::Frozen => "sensor frozen (reading repeats exactly)",
-            Self::Dead => "sensor dead (constant reading)",
-            Self::Noisy => "sensor noise far above the transducer's",
-            Self::Spikes => "spikes in the sensor signal",
-            Self::Dropouts => "sensor signal drops out",
-            Self::LostResolution => "ADC lost resolution (missing low-bit codes)",
-            Self::Clipped => "sensor signal clipped below its range",
-            Self::ImpossibleRate => "pressure changes faster than the pneumatics allow",
-            Self::ImplausibleLevel => "pressure level impossible for this circuit (offset or gain)",
+            Self::OpenCircuit => "open circuit: ADC below 0.25 V",
+            Self::ShortCircuit => "short circuit: ADC above 4.75 V",
+            Self::Frozen => "frozen: the reading repeats exactly",
+            Self::Dead => "dead: constant reading since the release command",
+            Self::Noisy => "noisy: noise far above the transducer's",
+            Self::Spikes => "spikes: samples far from both neighbours",
+            Self::Dropouts => "dropouts: the reading is lost and comes back",
+            Self::LostResolution => "lost resolution: low ADC bits never change",
+            Self::Clipped => "clipped: the reading piles up below its range",
+            Self::ImpossibleRate => "impossible rate: faster than the pneumatics allow",
+            Self::ImplausibleLevel => "implausible level: offset or gain error",
         })
     }
 }
