@@ -179,6 +179,8 @@ impl Monitor {
     pub fn diagnosis(&self) -> FaultReport {
         let verdict = match self.check.latched() {
             Some(d) => Verdict::CannotDiagnose(NoDiagnosis::SensorFault(d.fault)),
+            // The twin starts every release from a vented chamber; this one did not.
+            None if self.check.unvented_start() => Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar),
             None => crate::classifier::diagnose(&self.features),
         };
         self.fault_report(verdict)

@@ -14,7 +14,12 @@
 //! | [`SensorFault::LostResolution`] | the lowest code bit never toggles over [`RESOLUTION_WINDOW`] samples although higher bits do | with 3.3 codes of noise the lowest bit toggles on about half of the samples |
 //! | [`SensorFault::Clipped`] | the largest code seen piles up: at least [`CLIP_MIN_HITS`] hits and [`CLIP_RATIO`] × more than the code below it | a noisy plateau has a thin upper tail; an amplifier that saturates maps everything above its limit onto one code |
 //! | [`SensorFault::ImpossibleRate`] | a jump that stays (a step), or a change over 0.1 s faster than any orifice can fill | the fastest fill the circuit allows (a missing 4 mm orifice) is ≈ 8 bar/s, 27 codes a sample |
-//! | [`SensorFault::ImplausibleLevel`] | a reading below atmosphere, or a non-zero reading at a release command after the chamber had time to vent | the chamber is vented to atmosphere when the brake is applied |
+//! | [`SensorFault::ImplausibleLevel`] | a reading below atmosphere (0.15 bar under for 5 samples, or the first three samples of a release 0.05 bar under on average), or a non-zero reading at a release command after the chamber had time to vent | the chamber is vented to atmosphere when the brake is applied |
+//!
+//! A reading above 0.15 bar g at the command without a vented rest before it (a recorded trace
+//! starts at the command) cannot tell a zero offset from a chamber that was not vented; either
+//! way it is no release the twin can judge: [`SignalCheck::unvented_start`], which the monitor
+//! reports as *unfamiliar release*.
 //!
 //! Open and short circuit ([`SensorFault::OpenCircuit`], [`SensorFault::ShortCircuit`]) are the
 //! range check of [`crate::sensor::pressure_from_adc`]; they are reported per sample.
@@ -54,9 +59,9 @@ pub const NOISY_MEAN_ABS_D2: u32 = 26;
 pub const SPIKE_MIN_CODES: u16 = 49;
 /// Spike threshold in units of the last window's mean |second difference| (× 4).
 pub const SPIKE_PER_MEAN_D2: u32 = 4;
-/// Smallest one-sample change that counts as a step, codes (0.3 bar: 3.7 × the fastest
-/// physical change of 27 codes a sample plus 8 σ of noise).
-pub const STEP_MIN_CODES: u16 = 98;
+/// Smallest one-sample change that counts as a step, codes (0.2 bar: the fastest physical
+/// change, 27 codes a sample for a missing 4 mm orifice, plus 8 σ of the sample-to-sample noise).
+pub const STEP_MIN_CODES: u16 = 66;
 /// Step threshold in units of the last window's mean |second difference| (× 6).
 pub const STEP_PER_MEAN_D2: u32 = 6;
 /// Samples over which the 0.1 s rate is taken.
@@ -85,6 +90,12 @@ pub const BELOW_ATMOSPHERE_RUN: u16 = 5;
 pub const VENTED_TOLERANCE_CODES: u16 = 49;
 /// Samples the valve must have been closed before a command for the chamber to be vented (3 s).
 pub const VENT_SAMPLES: u32 = 300;
+/// Samples at the command whose mean must not lie below atmosphere by more than
+/// [`START_BELOW_CODES`] (the chamber is vented then: a lower reading is a zero offset).
+pub const START_SAMPLES: u32 = 3;
+/// Tolerance below 0 bar g of the mean of the first samples, codes (0.05 bar, 8 σ of a
+/// three-sample mean at the specified noise).
+pub const START_BELOW_CODES: u32 = 16;
 
 /// A sensor fault and the sample (counted from the last release command) at which its
 /// evidence began.
@@ -143,6 +154,13 @@ pub struct SignalCheck {
     pending_jump: Option<(i32, u32)>,
     /// The first fault of this release (latched until the next command).
     latched: Option<Detected>,
+    /// Sum of the first [`START_SAMPLES`] codes after the command.
+    start_sum: u32,
+    /// Valid samples in `start_sum`.
+    start_n: u32,
+    /// The reading at the command was above a vented chamber's and the valve had not been
+    /// closed long enough to tell a zero offset from a chamber that was not vented.
+    unvented_start: bool,
 }
 
 impl Default for SignalCheck {
@@ -182,12 +200,22 @@ impl SignalCheck {
             below_run: 0,
             pending_jump: None,
             latched: None,
+            start_sum: 0,
+            start_n: 0,
+            unvented_start: false,
         }
     }
 
     /// The fault latched since the last release command, if any.
     pub fn latched(&self) -> Option<Detected> {
         self.latched
+    }
+
+    /// The release did not start from a vented chamber as far as the reading tells (above
+    /// 0.15 bar g at the command) and nothing shows it is a sensor offset: not a release the
+    /// twin and the classifier can judge (the pipeline says *unfamiliar release*).
+    pub fn unvented_start(&self) -> bool {
+        self.unvented_start
     }
 
     /// The code `back` samples before the newest (0 = newest); `None` if not yet seen.
@@ -228,9 +256,29 @@ impl SignalCheck {
         self.low_bit_live = false;
         self.below_run = 0;
         self.pending_jump = None;
+        self.start_sum = 0;
+        self.start_n = 0;
+        self.unvented_start = false;
         // The chamber had time to vent: the reading at the command must be 0 bar g.
         if let Some(c) = self.code(0).filter(|_| vented_rest) {
             if c > CODE_AT_ZERO + VENTED_TOLERANCE_CODES {
+                self.latch(SensorFault::ImplausibleLevel, 0);
+            }
+        }
+    }
+
+    /// The first samples after a command: a vented chamber reads 0 bar g.
+    fn check_start(&mut self, c: u16) {
+        if self.index == 0 && self.latched.is_none() && c > CODE_AT_ZERO + VENTED_TOLERANCE_CODES {
+            self.unvented_start = true;
+        }
+        // Only when the first samples are all valid (an out-of-range start is its own fault).
+        if self.index < START_SAMPLES {
+            self.start_sum += u32::from(c);
+            self.start_n += 1;
+            if self.start_n == START_SAMPLES
+                && self.start_sum + START_SAMPLES * START_BELOW_CODES < START_SAMPLES * u32::from(CODE_AT_ZERO)
+            {
                 self.latch(SensorFault::ImplausibleLevel, 0);
             }
         }
@@ -260,6 +308,9 @@ impl SignalCheck {
             if self.filled > 0 {
                 self.latch(SensorFault::Dropouts, self.index.saturating_sub(1));
             }
+        }
+        if valve_open {
+            self.check_start(c);
         }
         self.push(c, valve_open);
         self.latched.map(|d| d.fault)
@@ -317,10 +368,11 @@ impl SignalCheck {
             if self.toggle_n >= RESOLUTION_WINDOW {
                 if self.toggled != 0 && self.toggled & 1 == 0 {
                     self.latch(SensorFault::LostResolution, self.toggle_start);
-                    // A coarse converter holds one code for a long time on a slow signal, which
-                    // the run check saw first: name the more specific cause, keep the onset.
+                    // A coarse converter holds one code for a long time on a slow signal and
+                    // rounds 0 bar g below atmosphere, which the run and level checks saw first:
+                    // name the more specific cause, keep the onset.
                     if let Some(d) = self.latched.as_mut() {
-                        if matches!(d.fault, SensorFault::Dead | SensorFault::Frozen) {
+                        if matches!(d.fault, SensorFault::Dead | SensorFault::Frozen | SensorFault::ImplausibleLevel) {
                             d.fault = SensorFault::LostResolution;
                         }
                     }

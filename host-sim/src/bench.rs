@@ -2,7 +2,7 @@
 //! the accuracy study behind [`GENERATE_STEP_S`]. Prints a report and writes it (Markdown) to
 //! `--report` (default `bench/host.md`).
 
-use crate::generate::{draw_fault, fleet, generate, simulate_plant, GenerateArgs, SplitMode, GENERATE_STEP_S};
+use crate::generate::{draw_fault, fleet, generate, simulate_plant, GenerateArgs, GENERATE_STEP_S};
 use crate::reference::REFERENCE_STEP_S;
 use anyhow::{Context, Result};
 use pbm::monitor::Monitor;
@@ -223,17 +223,10 @@ pub fn run(a: &BenchArgs) -> Result<()> {
     if !a.skip_generate {
         let scratch = a.scratch.clone().unwrap_or_else(|| std::env::temp_dir().join("host-sim-bench-generate"));
         let args = GenerateArgs {
-            out: scratch.clone(),
-            locomotives: 6,
             per_class: a.per_class,
             test_per_class: a.test_per_class,
-            seed: 1,
-            classes: FaultClass::PAPER.iter().map(|c| c.label().to_owned()).collect(),
-            split: SplitMode::HeldOut,
-            test_locomotives: 2,
-            threads: 0,
             force: true,
-            effects: Vec::new(),
+            ..GenerateArgs::with_defaults(scratch.clone())
         };
         let cpu0 = process_cpu_seconds();
         let s = generate(&args, true)?;

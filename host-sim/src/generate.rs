@@ -120,9 +120,62 @@ pub struct GenerateArgs {
     /// Overwrite a non-empty output directory.
     #[arg(long)]
     pub force: bool,
-    /// Plant effect NAME=VALUE (repeatable), see `host_sim::plant` for names, units and ranges.
+    /// Plant effect NAME=VALUE (repeatable), e.g. `transport_delay=0.1` (s: the valve opens late);
+    /// the names, units and ranges are those of the audit's mechanisms.
     #[arg(long = "effect", value_parser = parse_effect_arg)]
     pub effects: Vec<(String, f64)>,
+    /// Sensor or ADC fault KIND[=VALUE][@ONSET_S|@random] on every trace (repeatable, applied in
+    /// order): frozen, dead[=BAR], noisy[=SIGMA_BAR], spikes[=FRACTION], dropouts[=P],
+    /// lost_resolution[=BITS], clipped[=BAR], impossible_rate[=STEP_BAR],
+    /// implausible_level[=GAIN], offset[=BAR], open_circuit, short_circuit. The manifest label
+    /// stays the release's true class; the fault is in the trace's `# sensor_fault:` metadata
+    /// and truth.csv's `sensor_fault` column. Without @ONSET the onset is drawn per trace in
+    /// 1..50 s.
+    #[arg(long = "sensor-fault", value_parser = crate::sensor_faults::parse_spec)]
+    pub sensor_faults: Vec<crate::sensor_faults::FaultSpec>,
+    /// Transducer noise before the ADC, σ in bar (SPEC §5: 0.01).
+    #[arg(long, default_value_t = NOISE_SIGMA_BAR)]
+    pub noise_bar: f64,
+    /// Relative manufacturing spread of V0, F0, K, Cf, Fc and Fs per locomotive (SPEC §5: 0.05).
+    #[arg(long, default_value_t = SPREAD_REL)]
+    pub spread: f64,
+    /// Range of the locomotives' regulator settings, LO,HI in bar g (SPEC §5: 7.67,7.73).
+    #[arg(long, value_delimiter = ',', num_args = 2, default_values_t = [REGULATOR_BAR_G.0, REGULATOR_BAR_G.1])]
+    pub regulator_bar: Vec<f64>,
+}
+
+/// The nuisance conditions of a data set: transducer noise, locomotive spread, regulator range.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Conditions {
+    /// Noise σ, bar.
+    pub noise_bar: f64,
+    /// Relative spread.
+    pub spread: f64,
+    /// Regulator range, bar g.
+    pub regulator_bar_g: (f64, f64),
+}
+
+impl Conditions {
+    /// SPEC §5.
+    pub const SPEC: Self = Self { noise_bar: NOISE_SIGMA_BAR, spread: SPREAD_REL, regulator_bar_g: REGULATOR_BAR_G };
+
+    /// From the command line, checked.
+    pub fn from_args(a: &GenerateArgs) -> Result<Self> {
+        let (lo, hi) = match a.regulator_bar[..] {
+            [lo, hi] => (lo, hi),
+            _ => bail!("--regulator-bar takes LO,HI"),
+        };
+        if !(a.noise_bar.is_finite() && (0.0..=1.0).contains(&a.noise_bar)) {
+            bail!("--noise-bar must be within 0..=1 bar (got {})", a.noise_bar);
+        }
+        if !(a.spread.is_finite() && (0.0..0.5).contains(&a.spread)) {
+            bail!("--spread must be within 0..0.5 (got {})", a.spread);
+        }
+        if !(lo.is_finite() && hi.is_finite() && 0.5 <= lo && lo <= hi && hi <= 10.0) {
+            bail!("--regulator-bar needs 0.5 ≤ LO ≤ HI ≤ 10 bar g (got {lo},{hi})");
+        }
+        Ok(Self { noise_bar: a.noise_bar, spread: a.spread, regulator_bar_g: (lo, hi) })
+    }
 }
 
 impl GenerateArgs {
@@ -203,10 +256,15 @@ pub(crate) fn normal_pair(rng: &mut impl Rng) -> (f64, f64) {
 
 /// The fleet of `n` locomotives for `seed` (SPEC §5 spread).
 pub fn fleet(seed: u64, n: usize) -> Vec<Locomotive> {
+    fleet_with(seed, n, &Conditions::SPEC)
+}
+
+/// The fleet of `n` locomotives for `seed` with the given spread and regulator range.
+pub fn fleet_with(seed: u64, n: usize, c: &Conditions) -> Vec<Locomotive> {
     (0..n)
         .map(|i| {
             let mut rng = stream(seed, 1, i as u64, 0);
-            let spread = (1.0 - SPREAD_REL, 1.0 + SPREAD_REL);
+            let spread = (1.0 - c.spread, 1.0 + c.spread);
             let mut p = TwinParams::nominal();
             p.dead_volume_m3 *= uniform(&mut rng, spread);
             p.preload_n *= uniform(&mut rng, spread);
@@ -214,7 +272,7 @@ pub fn fleet(seed: u64, n: usize) -> Vec<Locomotive> {
             p.discharge_coeff *= uniform(&mut rng, spread);
             p.coulomb_n *= uniform(&mut rng, spread);
             p.static_n *= uniform(&mut rng, spread);
-            p.supply = BarG(uniform(&mut rng, REGULATOR_BAR_G));
+            p.supply = BarG(uniform(&mut rng, c.regulator_bar_g));
             Locomotive { name: format!("loco-{:02}", i + 1), params: p }
         })
         .collect()
@@ -254,13 +312,18 @@ pub fn simulate_plant(params: &TwinParams, step_s: f64, samples: usize) -> Resul
 
 /// The sensor of SPEC §5: N(0, σ) noise, then the 12-bit ADC map with clamping.
 pub fn sense(pressure_bar_g: &[f64], rng: &mut impl Rng) -> Vec<u16> {
-    let mut out = Vec::with_capacity(pressure_bar_g.len());
-    for pair in pressure_bar_g.chunks(2) {
+    let noise = transducer_noise(pressure_bar_g.len(), NOISE_SIGMA_BAR, rng);
+    pressure_bar_g.iter().zip(noise).map(|(&p, n)| adc_from_bar(BarG(p + n)).0).collect()
+}
+
+/// `n` samples of the transducer's white noise of σ `sigma_bar` (pairs of normals from `rng`).
+pub fn transducer_noise(n: usize, sigma_bar: f64, rng: &mut impl Rng) -> Vec<f64> {
+    let mut out = Vec::with_capacity(n + 1);
+    while out.len() < n {
         let (n0, n1) = normal_pair(rng);
-        for (&p, n) in pair.iter().zip([n0, n1]) {
-            out.push(adc_from_bar(BarG(p + NOISE_SIGMA_BAR * n)).0);
-        }
+        out.extend([sigma_bar * n0, sigma_bar * n1]);
     }
+    out.truncate(n);
     out
 }
 
@@ -293,6 +356,10 @@ impl TraceJob {
     /// Random stream of this trace: depends only on (seed, class, split, k).
     pub fn rng(&self, seed: u64) -> ChaCha8Rng {
         stream(seed, 2, self.class as u64, (u64::from(self.test) << 32) | self.k as u64)
+    }
+    /// Random stream of this trace's sensor faults (separate, so the release is unchanged).
+    pub fn fault_rng(&self, seed: u64) -> ChaCha8Rng {
+        stream(seed, 3, self.class as u64, (u64::from(self.test) << 32) | self.k as u64)
     }
 }
 
@@ -355,26 +422,42 @@ pub struct TraceTruth {
     pub final_bar_g: f64,
     /// Travel at the last sample, mm.
     pub final_travel_mm: f64,
+    /// Sensor faults applied (`KIND=VALUE@ONSET`), none for a healthy transducer.
+    pub sensor_faults: Vec<String>,
 }
 
-/// Simulates one job: its ADC samples and ground truth.
+/// Simulates one job: its ADC samples and ground truth (SPEC §5 transducer, no sensor fault).
 pub fn run_job(
     job: &TraceJob,
     fleet: &[Locomotive],
     seed: u64,
     effects: &PlantEffects,
 ) -> Result<(Vec<u16>, TraceTruth)> {
+    run_job_with(job, fleet, seed, effects, NOISE_SIGMA_BAR, &[])
+}
+
+/// [`run_job`] with a transducer noise of `noise_bar` and sensor faults.
+pub fn run_job_with(
+    job: &TraceJob,
+    fleet: &[Locomotive],
+    seed: u64,
+    effects: &PlantEffects,
+    noise_bar: f64,
+    faults: &[crate::sensor_faults::FaultSpec],
+) -> Result<(Vec<u16>, TraceTruth)> {
     let loco = fleet.get(job.locomotive).context("locomotive index out of range")?;
     let mut rng = job.rng(seed);
     let mut params = draw_fault(&loco.params, job.class, &mut rng);
     params.ext = effects.ext;
     let (p, x) = simulate_plant(&params, GENERATE_STEP_S, TRACE_SAMPLES)?;
-    let adc = sense(&p, &mut rng);
+    let noise = transducer_noise(p.len(), noise_bar, &mut rng);
+    let (adc, applied) = crate::sensor_faults::sense_with_faults(&p, &noise, faults, &mut job.fault_rng(seed));
     let truth = TraceTruth {
         params,
         regulator_bar_g: loco.params.supply.0,
         final_bar_g: p.last().copied().unwrap_or(0.0),
         final_travel_mm: x.last().copied().unwrap_or(0.0),
+        sensor_faults: applied.iter().map(|a| a.describe()).collect(),
     };
     Ok((adc, truth))
 }
@@ -401,6 +484,11 @@ pub fn truth_row(row: &ManifestRow, t: &TraceTruth) -> String {
         t.final_bar_g,
         t.final_travel_mm
     )
+}
+
+/// A `truth.csv` row with the `sensor_fault` column (`;`-joined, empty when none).
+pub fn truth_row_with_faults(row: &ManifestRow, t: &TraceTruth) -> String {
+    format!("{},{}", truth_row(row, t), t.sensor_faults.join(";"))
 }
 
 /// What `generate` produced.
@@ -431,9 +519,11 @@ pub fn generate_with<T: Send>(
 ) -> Result<(GenerateSummary, Vec<T>)> {
     let start = Instant::now();
     let effects = PlantEffects::from_args(&a.effects)?;
+    let conditions = Conditions::from_args(a)?;
+    crate::sensor_faults::check_specs(&a.sensor_faults)?;
     let classes = parse_classes(&a.classes)?;
     let jobs = plan(a, &classes)?;
-    let fleet = fleet(a.seed, a.locomotives);
+    let fleet = fleet_with(a.seed, a.locomotives, &conditions);
     prepare_out_dir(&a.out, a.force)?;
     for split in ["train", "test"] {
         let d = a.out.join("traces").join(split);
@@ -458,8 +548,8 @@ pub fn generate_with<T: Send>(
                     locomotive: fleet[job.locomotive].name.clone(),
                     split: job.split().to_owned(),
                 };
-                let (adc, truth) = run_job(job, &fleet, a.seed, &effects)?;
-                let meta = [
+                let (adc, truth) = run_job_with(job, &fleet, a.seed, &effects, conditions.noise_bar, &a.sensor_faults)?;
+                let mut meta = vec![
                     ("label", row.label.clone()),
                     ("locomotive", row.locomotive.clone()),
                     ("split", row.split.clone()),
@@ -468,11 +558,13 @@ pub fn generate_with<T: Send>(
                     (
                         "source",
                         format!(
-                            "host-sim generate: f64 reference twin (step {} ms), noise {NOISE_SIGMA_BAR} bar, 12-bit ADC",
-                            GENERATE_STEP_S * 1e3
+                            "host-sim generate: f64 reference twin (step {} ms), noise {} bar, 12-bit ADC",
+                            GENERATE_STEP_S * 1e3,
+                            conditions.noise_bar
                         ),
                     ),
                 ];
+                meta.extend(truth.sensor_faults.iter().map(|f| ("sensor_fault", f.clone())));
                 let mut buf = Vec::with_capacity(adc.len() * 10 + 256);
                 write_adc_trace(&mut buf, &meta, &adc)?;
                 let path = a.out.join(&row.file);
@@ -486,14 +578,18 @@ pub fn generate_with<T: Send>(
     bar.finish_and_clear();
 
     let mut rows = Vec::with_capacity(results.len());
+    let with_faults = !a.sensor_faults.is_empty();
     let mut truth = String::from(TRUTH_HEADER);
+    if with_faults {
+        truth.push_str(",sensor_fault");
+    }
     truth.push('\n');
     let mut bytes = 0;
     let mut extras = Vec::with_capacity(results.len());
     for r in results {
         let (row, t, n, extra) = r?;
         extras.push(extra);
-        truth.push_str(&truth_row(&row, &t));
+        truth.push_str(&if with_faults { truth_row_with_faults(&row, &t) } else { truth_row(&row, &t) });
         truth.push('\n');
         bytes += n;
         rows.push(row);

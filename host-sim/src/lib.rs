@@ -23,6 +23,7 @@ pub mod plot;
 pub mod reference;
 pub mod replay;
 pub mod report_html;
+pub mod sensor_faults;
 pub mod simulate;
 pub mod trace;
 pub mod train;

@@ -220,7 +220,7 @@ mod tests {
     fn end_of_input_and_valve_closing_close_the_diagnosis() {
         let mut pipe = Pipeline::nominal().unwrap();
         for i in 0..50 {
-            assert!(pipe.step(noisy(0.5, i), true).closed.is_none());
+            assert!(pipe.step(noisy(0.01 * f64::from(i), i), true).closed.is_none());
         }
         let (report, frames) = pipe.close().unwrap();
         assert_eq!(report.verdict, Verdict::CannotDiagnose(NoDiagnosis::TooShort));
@@ -239,6 +239,16 @@ mod tests {
         // Valve stays closed: no repeats.
         let n: usize = (0..300).map(|i| fault_reports(pipe.step(noisy(0.0, i), false).frames.as_slice())).sum();
         assert_eq!(n, 0);
+    }
+
+    #[test]
+    fn a_release_that_does_not_start_vented_is_unfamiliar() {
+        let mut pipe = Pipeline::nominal().unwrap();
+        for i in 0..300 {
+            pipe.step(noisy(2.0 + 0.001 * f64::from(i), i), true);
+        }
+        let (report, _) = pipe.close().unwrap();
+        assert_eq!(report.verdict, Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar));
     }
 
     #[test]
