@@ -113,6 +113,11 @@ use crate::TwinParams;
 
 /// Samples per regression block (0.1 s at 100 Hz).
 pub const BLOCK_SAMPLES: u8 = 10;
+/// Gauge pressure (bar) a block must exceed before the fill regressions start: the flow has
+/// begun. 0.03 bar is 10 σ of a block mean at the transducer's noise, and 40 ms of a nominal
+/// fill; blocks before it (a transport delay in the supply line) would form rates across the
+/// start of the flow, which are no choked-fill rates.
+pub const FLOW_START_BAR: f32 = 0.03;
 /// Blocks per plateau-detection window (1 s).
 pub const WINDOW_BLOCKS: u8 = 10;
 /// Upper pressure cutoffs (bar abs) of the choked-fill windows, one RLS each (module docs).
@@ -484,6 +489,12 @@ impl ReleaseEstimator {
     fn block(&mut self, sum: i64) -> Result<(), EstimatorError> {
         const Q24_PER_BAR: f32 = 16_777_216.0;
         let pressure = sum as f32 * (1.0 / (Q24_PER_BAR * BLOCK_SAMPLES as f32));
+        if self.phase == Phase::ChokedFill && self.fill_blocks == 0 && pressure < 1.0 + FLOW_START_BAR {
+            // The air has not arrived yet (a transport delay in the supply line): a rate formed
+            // across the start of the flow is no choked-fill rate.
+            self.prev_block_sum = None;
+            return self.plateau_block(pressure);
+        }
         let prev = self.prev_block_sum.replace(sum);
         let mut result = Ok(());
         if let Some(prev) = prev {
@@ -501,6 +512,9 @@ impl ReleaseEstimator {
     }
 
     fn fill_block(&mut self, obs: &BlockObservation) -> Result<(), EstimatorError> {
+        if self.fill_blocks == 0 && obs.mid_pressure < 1.0 + FLOW_START_BAR {
+            return Ok(());
+        }
         let top = FILL_CUTOFFS_BAR_ABS[FILL_WINDOWS - 1];
         if obs.mid_pressure > top {
             // Above the last cutoff: the choked fill is over (the delayed blocks are all below it).

@@ -25,6 +25,8 @@
 //! fits use the numerically stable one-pass (Welford) co-moment update, so a long band loses
 //! no precision to cancellation in single precision.
 
+/// Largest start delay [`PhaseTracker::start_delay`] reports, s.
+pub const MAX_START_DELAY_S: f32 = 1.0;
 /// Levels (bar g) whose first crossing time is a feature.
 pub const LEVELS_BAR: [f32; 10] = [0.5, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 7.4, 7.6];
 /// Pressure bands (bar g, `[lo, hi)`) whose least-squares filling slope is a feature. The
@@ -243,14 +245,30 @@ impl PhaseTracker {
         self.bands.get(i).map_or(0.0, LineFit::slope)
     }
 
-    /// The features in [`PHYSICS_NAMES`] order. Levels not reached yet and knees not seen yet
-    /// read as the current time (censored); missing slopes read 0.
+    /// Seconds between the release command and the start of the flow into the chamber: where the
+    /// filling line of the first band (0.3–1.0 bar, fixed volume, choked inlet: a straight line)
+    /// extrapolates to 0 bar g, clamped to 0..=[`MAX_START_DELAY_S`]; 0 until that band has its
+    /// slope. A transport delay in the supply line (the paper sees one in its measured releases)
+    /// shifts every time of the release by this much and nothing else.
+    pub fn start_delay(&self) -> f32 {
+        let (Some(t_half), slope) = (self.cross[0], self.band_slope(0)) else { return 0.0 };
+        if slope <= 0.0 {
+            return 0.0;
+        }
+        (t_half - LEVELS_BAR[0] / slope).clamp(0.0, MAX_START_DELAY_S)
+    }
+
+    /// The features in [`PHYSICS_NAMES`] order. Times are counted from the start of the flow
+    /// ([`Self::start_delay`] after the command), so a release whose air arrives late reads as
+    /// the same release. Levels not reached yet and knees not seen yet read as the current time
+    /// (censored); missing slopes read 0.
     pub fn values(&self) -> [f32; N_PHYSICS] {
         let mut v = [0.0; N_PHYSICS];
-        let t = self.t_now;
+        let delay = self.start_delay();
+        let t = self.t_now - delay;
         v[0] = t;
         for (i, c) in self.cross.iter().enumerate() {
-            v[1 + i] = c.unwrap_or(t);
+            v[1 + i] = c.map_or(t, |c| c - delay);
         }
         let b = 1 + LEVELS_BAR.len();
         for i in 0..BANDS_BAR.len() {
@@ -262,8 +280,8 @@ impl PhaseTracker {
         v[o + 2] = self.p_max;
         v[o + 3] = libm::logf((DEFICIT_REF_BAR - self.p_now).clamp(0.01, 10.0));
         v[o + 4] = self.breakaway.map_or(0.0, |k| k.1);
-        v[o + 5] = self.breakaway.map_or(t, |k| k.0);
-        v[o + 6] = self.end_stop.map_or(t, |k| k.0);
+        v[o + 5] = self.breakaway.map_or(t, |k| k.0 - delay);
+        v[o + 6] = self.end_stop.map_or(t, |k| k.0 - delay);
         let ratio = |num: f32, den: f32| if num > 0.0 && den > 0.0 { num / den } else { 0.0 };
         let s = |i| self.band_slope(i);
         v[o + 7] = ratio(s(2), s(1));
