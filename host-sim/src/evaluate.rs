@@ -112,6 +112,58 @@ pub fn accuracy_vs_time(
         .collect()
 }
 
+/// Bins of the reliability diagram and of the expected calibration error.
+pub const CALIBRATION_BINS: usize = 15;
+
+/// One bin of a reliability diagram: releases whose confidence falls in it, their mean
+/// confidence and their accuracy (both 0..1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReliabilityBin {
+    /// Releases in the bin.
+    pub n: usize,
+    /// Mean confidence.
+    pub confidence: f64,
+    /// Share correct.
+    pub accuracy: f64,
+}
+
+/// The int8 model's verdict on each release at the end of its trace, as the core sends it: the
+/// confidence (per cent, capped at `MAX_CONFIDENCE_PCT`) and whether the class is right. Releases
+/// the core refuses (unfamiliar inputs) have no confidence and are left out.
+pub fn final_confidences(q: &QuantParams, classes: &[FaultClass], data: &[TraceFeatures]) -> Vec<(f64, bool)> {
+    data.iter()
+        .filter_map(|d| {
+            let row = d.snapshots.last()?;
+            let inf = q.with_model(|m| m.classify(row).ok())?;
+            let pct = inf.confidence_pct.min(pbm::classifier::MAX_CONFIDENCE_PCT);
+            Some((f64::from(pct) / 100.0, Some(inf.index) == class_index(classes, d.class)))
+        })
+        .collect()
+}
+
+/// Expected calibration error (Naeini et al. 2015; Guo et al. 2017): Σ over equal-width
+/// confidence bins of (bin share) × |accuracy − mean confidence|, with the bins.
+pub fn calibration(pairs: &[(f64, bool)]) -> (f64, Vec<ReliabilityBin>) {
+    let mut bins = vec![(0usize, 0.0f64, 0usize); CALIBRATION_BINS];
+    for &(c, ok) in pairs {
+        let k = ((c * CALIBRATION_BINS as f64) as usize).min(CALIBRATION_BINS - 1);
+        bins[k].0 += 1;
+        bins[k].1 += c;
+        bins[k].2 += usize::from(ok);
+    }
+    let total = pairs.len().max(1) as f64;
+    let mut ece = 0.0;
+    let out = bins
+        .iter()
+        .map(|&(n, sum_c, ok)| {
+            let (conf, acc) = if n > 0 { (sum_c / n as f64, ok as f64 / n as f64) } else { (0.0, 0.0) };
+            ece += n as f64 / total * (acc - conf).abs();
+            ReliabilityBin { n, confidence: conf, accuracy: acc }
+        })
+        .collect();
+    (ece, out)
+}
+
 /// Share (%) of traces whose int8 class is correct at every snapshot from `t` on, for the
 /// earliest such `t` ≤ `by_s` (i.e. diagnosed correctly and stably by `by_s`).
 pub fn stable_by(q: &QuantParams, classes: &[FaultClass], data: &[TraceFeatures], by_s: f64) -> f64 {
@@ -220,6 +272,32 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
     let truth: Vec<usize> = test.iter().filter_map(|d| class_index(&classes, d.class)).collect();
     let curve = accuracy_vs_time(&nets[3].1, &quant, &classes, &test);
     let stable10 = stable_by(&quant, &classes, &test, 10.0);
+    let confidences = final_confidences(&quant, &classes, &test);
+    let (ece, bins) = calibration(&confidences);
+    // The model compiled into the core, as replay and the firmware send it.
+    let core: Vec<(f64, bool)> = test
+        .iter()
+        .filter_map(|d| match d.core_verdict {
+            pbm::report::Verdict::Class { class, confidence_pct } => {
+                Some((f64::from(confidence_pct) / 100.0, class == d.class))
+            }
+            pbm::report::Verdict::CannotDiagnose(_) => None,
+        })
+        .collect();
+    let (core_ece, _) = calibration(&core);
+    let compiled = &pbm::classifier::model_weights::MODEL;
+    let core_class = |row: &[f64]| compiled.classify(row).ok().map(|inf| inf.class);
+    let core_stable10 = {
+        let last_k = SNAPSHOT_TIMES_S.iter().rposition(|&t| t <= 10.0).unwrap_or(0);
+        let ok = test
+            .iter()
+            .filter(|d| {
+                let correct: Vec<bool> = d.snapshots.iter().map(|s| core_class(s) == Some(d.class)).collect();
+                (0..=last_k).any(|k| correct.get(k..).is_some_and(|c| !c.is_empty() && c.iter().all(|&b| b)))
+            })
+            .count();
+        100.0 * ok as f64 / test.len().max(1) as f64
+    };
     let lolo = if a.lolo {
         let all = dataset_features(&a.dataset, None)?;
         Some(leave_one_locomotive_out(&all, a.seed)?)
@@ -266,6 +344,28 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
         }
     }
     println!("traces diagnosed correctly (int8) and stably from some t <= 10 s on: {stable10:.1} %");
+    println!("the same for the model compiled into the core: {core_stable10:.1} %");
+    println!(
+        "calibration of the confidence the core sends (int8, at the end of each trace, {} releases, {} bins): \
+         expected calibration error {:.2} %",
+        confidences.len(),
+        CALIBRATION_BINS,
+        100.0 * ece
+    );
+    println!(
+        "calibration of the model compiled into the core (its verdicts at the end of each trace, {} named): \
+         expected calibration error {:.2} %",
+        core.len(),
+        100.0 * core_ece
+    );
+    for b in bins.iter().filter(|b| b.n > 0) {
+        println!(
+            "  confidence {:>5.1} %  accuracy {:>5.1} %  ({} releases)",
+            100.0 * b.confidence,
+            100.0 * b.accuracy,
+            b.n
+        );
+    }
     if let Some(l) = &lolo {
         println!("leave-one-locomotive-out (ours, at 60 s; f64 / int8):");
         for (loco, n, f, q) in l {
@@ -284,6 +384,7 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
         plot_confusions(&dir.join("confusion.svg"), &classes, &scores)?;
         plot_curve(&dir.join("accuracy_vs_time.svg"), &curve)?;
+        plot_reliability(&dir.join("reliability.svg"), &bins, ece)?;
         println!("plots written to {}", dir.display());
     }
     Ok(())
@@ -380,6 +481,38 @@ fn plot_confusions(path: &Path, classes: &[FaultClass], scores: &[Score]) -> Res
         }
     }
     root.present().map_err(plot_err)
+}
+
+/// Reliability diagram: accuracy against mean confidence per bin, with the diagonal of a
+/// perfectly calibrated model; the point area follows the bin's share of releases.
+pub fn plot_reliability(path: &Path, bins: &[ReliabilityBin], ece: f64) -> Result<()> {
+    use plotters::prelude::*;
+    let root = SVGBackend::new(path, (560, 520)).into_drawing_area();
+    root.fill(&WHITE).map_err(plot_err)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(format!("Reliability (ECE {:.2} %)", 100.0 * ece), ("sans-serif", 20))
+        .margin(14)
+        .x_label_area_size(44)
+        .y_label_area_size(54)
+        .build_cartesian_2d(0.0..100.0, 0.0..100.0)
+        .map_err(plot_err)?;
+    chart
+        .configure_mesh()
+        .x_desc("confidence sent (%)")
+        .y_desc("observed accuracy (%)")
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(plot_err)?;
+    chart.draw_series(LineSeries::new([(0.0, 0.0), (100.0, 100.0)], BLACK.mix(0.4))).map_err(plot_err)?;
+    let total = bins.iter().map(|b| b.n).sum::<usize>().max(1) as f64;
+    chart
+        .draw_series(bins.iter().filter(|b| b.n > 0).map(|b| {
+            let r = (3.0 + 12.0 * (b.n as f64 / total).sqrt()) as i32;
+            Circle::new((100.0 * b.confidence, 100.0 * b.accuracy), r, RGBColor(0, 114, 178).filled())
+        }))
+        .map_err(plot_err)?;
+    root.present().map_err(plot_err)?;
+    Ok(())
 }
 
 fn plot_curve(path: &Path, curve: &[(f64, f64, f64)]) -> Result<()> {

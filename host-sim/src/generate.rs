@@ -140,7 +140,7 @@ pub struct GenerateArgs {
     #[arg(long, default_value_t = SPREAD_REL)]
     pub spread: f64,
     /// Range of the locomotives' regulator settings, LO,HI in bar g (SPEC §5: 7.67,7.73).
-    #[arg(long, value_delimiter = ',', num_args = 2, default_values_t = [REGULATOR_BAR_G.0, REGULATOR_BAR_G.1])]
+    #[arg(long, value_delimiter = ',', default_values_t = [REGULATOR_BAR_G.0, REGULATOR_BAR_G.1])]
     pub regulator_bar: Vec<f64>,
 }
 
