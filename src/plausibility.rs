@@ -36,7 +36,7 @@
 //!
 //! # What it cannot see
 //!
-//! A slow drift or a small offset step (below [`STEP_MIN_CODES`], 0.3 bar) looks like a
+//! A slow drift or a small offset step (below [`STEP_MIN_CODES`], 0.12 bar) looks like a
 //! pressure change; a gain error or a stuck transducer with live noise looks like a plateau.
 //! Those produce a release that no fault class explains; the classifier's out-of-distribution
 //! guard refuses it as *unfamiliar* rather than naming a brake fault.
@@ -59,9 +59,10 @@ pub const NOISY_MEAN_ABS_D2: u32 = 26;
 pub const SPIKE_MIN_CODES: u16 = 49;
 /// Spike threshold in units of the last window's mean |second difference| (× 4).
 pub const SPIKE_PER_MEAN_D2: u32 = 4;
-/// Smallest one-sample change that counts as a step, codes (0.2 bar: the fastest physical
-/// change, 27 codes a sample for a missing 4 mm orifice, plus 8 σ of the sample-to-sample noise).
-pub const STEP_MIN_CODES: u16 = 66;
+/// Smallest one-sample departure from the recent slope that counts as a step, codes (0.12 bar:
+/// 8.7 σ of the sample-to-sample noise; the pneumatics change the slope by far less than a code
+/// from one sample to the next, except at the knees, where it changes by a few codes).
+pub const STEP_MIN_CODES: u16 = 40;
 /// Step threshold in units of the last window's mean |second difference| (× 6).
 pub const STEP_PER_MEAN_D2: u32 = 6;
 /// Samples over which the 0.1 s rate is taken.
@@ -151,7 +152,8 @@ pub struct SignalCheck {
     /// Consecutive samples under atmosphere.
     below_run: u16,
     /// A sample that jumped by a step and is waiting for the next one to tell step from spike.
-    pending_jump: Option<(i32, u32)>,
+    /// (departure from the slope, sample, slope before it).
+    pending_jump: Option<(i32, u32, i32)>,
     /// The first fault of this release (latched until the next command).
     latched: Option<Detected>,
     /// Sum of the first [`START_SAMPLES`] codes after the command.
@@ -445,18 +447,27 @@ impl SignalCheck {
             self.latch(SensorFault::Spikes, now.saturating_sub(1));
         }
 
-        // Step: a jump at the previous sample that the current one does not take back.
+        // Step: a change at the previous sample that departs from the recent slope (the mean
+        // change per sample over the 10 samples before it) and that the current one does not
+        // take back. Measured against the slope, so a fast but smooth fill is no step.
+        let slope = match self.code(RATE_SPAN + 1) {
+            Some(old) => (p1 - i32::from(old)) / RATE_SPAN as i32,
+            None => 0,
+        };
         let step_min = u32::from(STEP_MIN_CODES).max(STEP_PER_MEAN_D2 * noise_ref);
-        if let Some((jump, at)) = self.pending_jump.take() {
-            let back = (jump > 0) != (d_cur > 0) && d_cur.unsigned_abs() > step_min / 2;
+        if let Some((jump, at, slope_before)) = self.pending_jump.take() {
+            // Against the slope before the jump (the recent slope now contains the jump).
+            let rest = d_cur - slope_before;
+            let back = (jump > 0) != (rest > 0) && rest.unsigned_abs() > step_min / 2;
             if !back {
                 self.latch(SensorFault::ImpossibleRate, at);
             }
         }
         // Only while the command is on: after it the chamber vents through the valve's exhaust,
         // whose rate the monitor does not know.
-        if valve_open && noise_known && d_cur.unsigned_abs() > step_min && !is_spike {
-            self.pending_jump = Some((d_cur, now));
+        let jump = d_cur - slope;
+        if valve_open && noise_known && jump.unsigned_abs() > step_min && !is_spike {
+            self.pending_jump = Some((jump, now, slope));
         }
 
         // Rate over 0.1 s while the command is on (venting after the command is not bounded),
