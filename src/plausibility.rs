@@ -422,6 +422,14 @@ impl SignalCheck {
             self.noise_window_done = true;
             if self.mean_abs_d2 > NOISY_MEAN_ABS_D2 {
                 self.latch(SensorFault::Noisy, self.window_start);
+                // Heavy noise makes large jumps and outliers before its window completes: a
+                // step or spike found in this window or the one before is the noise.
+                let since = self.window_start.saturating_sub(u32::from(NOISE_WINDOW));
+                if let Some(d) = self.latched.as_mut() {
+                    if matches!(d.fault, SensorFault::Spikes | SensorFault::ImpossibleRate) && d.onset >= since {
+                        d.fault = SensorFault::Noisy;
+                    }
+                }
             }
             self.d2_sum = 0;
             self.d2_n = 0;
