@@ -131,7 +131,7 @@ Measured by \`bash scripts/firmware-bench.sh\` ($(date -u +%Y-%m-%d), $(qemu-sys
 Instructions are counted with \`qemu-system-arm -icount shift=0\` (1 instruction = 1 ns of virtual
 time, read through SysTick at 25 MHz = 40 instructions per count; calibration loop of 300000
 instructions measured as $CAL). Over the $SAMPLES samples of the compiled-in trace (the core
-twin's nominal release, 60 s). Profile \`release\` of \`firmware/Cargo.toml\`: opt-level "z", the
+twin's nominal release with σ = 0.01 bar of transducer noise, 60 s). Profile \`release\` of \`firmware/Cargo.toml\`: opt-level "z", the
 core (\`parking-brake-monitor\`) at "s" (at "z" the worst sample exceeds the budget), fat LTO,
 codegen-units 1, panic = abort.
 
@@ -164,7 +164,7 @@ coinciding with twin substeps while the nominal twin's piston moves.
 
 | trace | mean | worst | over | estimator worst | classification |
 |---|---|---|---|---|---|
-| nominal twin release (compiled-in default, noise-free) | $PIPE | $PIPE_MAX | $OVER | $EST_MAX | $CLASSIFY |
+| nominal twin release (compiled-in default, with transducer noise) | $PIPE | $PIPE_MAX | $OVER | $EST_MAX | $CLASSIFY |
 ${TRACE_ROWS%$'\n'}
 
 ## Flash by component (\`monitor\` app, bytes of text + rodata symbols)
