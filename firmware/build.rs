@@ -111,7 +111,7 @@ fn main() {
                 }
             }
         }
-        None => ("nominal release of the core twin (noise-free)".to_string(), nominal_trace()),
+        None => ("nominal release of the core twin with transducer noise".to_string(), nominal_trace()),
     };
     let mut s = String::new();
     writeln!(s, "/// Where the compiled-in trace came from.").unwrap();
