@@ -181,7 +181,13 @@ impl Monitor {
             Some(d) => Verdict::CannotDiagnose(NoDiagnosis::SensorFault(d.fault)),
             // The twin starts every release from a vented chamber; this one did not.
             None if self.check.unvented_start() => Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar),
-            None => crate::classifier::diagnose(&self.features),
+            None => match crate::classifier::diagnose(&self.features) {
+                // The class must agree with the parameters the estimator measured.
+                Verdict::Class { class, .. } if !crate::classifier::consistent(class, &self.estimator.estimates()) => {
+                    Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar)
+                }
+                v => v,
+            },
         };
         self.fault_report(verdict)
     }

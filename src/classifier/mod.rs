@@ -238,6 +238,48 @@ impl QuantModel<'_> {
     }
 }
 
+/// The physical envelope of a fault class as the online estimator measures it: SPEC §4's
+/// parameter ranges widened by the estimator's error measured on valid releases (fresh seeds,
+/// twice the noise, ±10 % spread, 7.7 ± 0.1 bar regulators, transport delays; README). `None`
+/// bounds are not checked.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Envelope {
+    /// Estimated supply, bar g (lowest, highest).
+    pub supply_bar_g: (f32, f32),
+    /// Estimated equivalent orifice, mm (lowest, highest).
+    pub orifice_mm: (f32, f32),
+    /// Estimated equivalent leak, mm (lowest, highest).
+    pub leak_mm: (f32, f32),
+}
+
+/// The envelope of `class` (see [`Envelope`]). Regulator settings are 7.67–7.73 bar g, a low
+/// supply 3.5–7.2 bar g, a blocked orifice 0.35–1.0 mm, a leak 0.5–1.2 mm (SPEC §4, §5).
+pub const fn envelope(class: FaultClass) -> Envelope {
+    const ANY: (f32, f32) = (f32::NEG_INFINITY, f32::INFINITY);
+    const REGULATOR: (f32, f32) = (7.25, 7.95);
+    const OPEN: (f32, f32) = (1.0, ANY.1);
+    const BLOCKED: (f32, f32) = (ANY.0, 1.15);
+    const TIGHT: (f32, f32) = (ANY.0, 0.45);
+    const LEAKING: (f32, f32) = (0.35, ANY.1);
+    match class {
+        FaultClass::Normal => Envelope { supply_bar_g: REGULATOR, orifice_mm: OPEN, leak_mm: TIGHT },
+        FaultClass::AirLeak => Envelope { supply_bar_g: REGULATOR, orifice_mm: OPEN, leak_mm: LEAKING },
+        FaultClass::OrificeBlock => Envelope { supply_bar_g: REGULATOR, orifice_mm: BLOCKED, leak_mm: TIGHT },
+        FaultClass::LeakAndBlock => Envelope { supply_bar_g: REGULATOR, orifice_mm: BLOCKED, leak_mm: LEAKING },
+        FaultClass::LowSupply => Envelope { supply_bar_g: (3.3, 7.4), orifice_mm: OPEN, leak_mm: ANY },
+        FaultClass::OrificeMissing => Envelope { supply_bar_g: REGULATOR, orifice_mm: (2.0, ANY.1), leak_mm: ANY },
+    }
+}
+
+/// Whether the online estimator's parameters agree with the named class: a class whose physics
+/// contradicts what was measured (e.g. `air_leak` with a supply above every regulator) is not a
+/// release the classifier knows, whatever its softmax says. Parameters not estimated pass.
+pub fn consistent(class: FaultClass, e: &crate::estimator::Estimates) -> bool {
+    let env = envelope(class);
+    let within = |v: Option<f32>, (lo, hi): (f32, f32)| v.is_none_or(|v| !v.is_finite() || (lo..=hi).contains(&v));
+    within(e.supply_bar_g, env.supply_bar_g) && within(e.orifice_mm, env.orifice_mm) && within(e.leak_mm, env.leak_mm)
+}
+
 /// The verdict on a release from its features so far, with the model compiled into the core.
 pub fn diagnose(features: &impl AsRef<ReleaseFeatures>) -> Verdict {
     diagnose_with(&model_weights::MODEL, features.as_ref())
@@ -340,6 +382,25 @@ mod tests {
         assert_eq!(TOY.infer(&[0, 0, 0]), Err(ModelError::Shape));
         let broken = QuantModel { classes: &CLASSES[..1], ..TOY };
         assert_eq!(broken.validate(), Err(ModelError::Shape));
+    }
+
+    #[test]
+    fn a_class_must_agree_with_the_estimated_physics() {
+        use crate::estimator::Estimates;
+        let e = |orifice: f32, leak: f32, supply: Option<f32>| Estimates {
+            orifice_mm: Some(orifice),
+            leak_mm: Some(leak),
+            supply_bar_g: supply,
+            ..Estimates::NONE
+        };
+        assert!(consistent(FaultClass::AirLeak, &e(1.25, 0.8, Some(7.6))));
+        // A "leak" whose supply lies above every regulator: something else (e.g. wall heat).
+        assert!(!consistent(FaultClass::AirLeak, &e(1.25, 0.8, Some(8.05))));
+        assert!(!consistent(FaultClass::Normal, &e(1.25, 0.8, Some(7.7))), "normal with a 0.8 mm leak");
+        assert!(!consistent(FaultClass::OrificeBlock, &e(1.25, 0.0, None)), "blocked at 1.25 mm");
+        assert!(consistent(FaultClass::LeakAndBlock, &e(0.6, 0.9, None)), "no supply estimate: not checked");
+        assert!(!consistent(FaultClass::LowSupply, &e(1.25, 0.0, Some(2.6))), "below the low-supply range");
+        assert!(consistent(FaultClass::Normal, &Estimates::NONE));
     }
 
     #[test]
