@@ -288,6 +288,10 @@ pub struct EvalStage {
     pub curve: Vec<(f64, f64, f64)>,
     /// Share of test traces diagnosed correctly (int8) and stably from some t ≤ 10 s, %.
     pub stable10: f64,
+    /// Expected calibration error of the int8 confidence at the end of the test traces (0..1).
+    pub ece: f64,
+    /// Its reliability bins.
+    pub reliability: Vec<crate::evaluate::ReliabilityBin>,
 }
 
 fn eval_stage(trained: &Trained, test: &[TraceFeatures]) -> Result<EvalStage> {
@@ -296,7 +300,9 @@ fn eval_stage(trained: &Trained, test: &[TraceFeatures]) -> Result<EvalStage> {
     let ours = &nets.iter().find(|(k, _)| *k == Kind::Ours).context("no `ours` model")?.1;
     let curve = accuracy_vs_time(ours, &trained.quant, &trained.classes, test);
     let stable10 = stable_by(&trained.quant, &trained.classes, test, 10.0);
-    Ok(EvalStage { classes: trained.classes.clone(), scores, int8_agree, curve, stable10 })
+    let (ece, reliability) =
+        crate::evaluate::calibration(&crate::evaluate::final_confidences(&trained.quant, &trained.classes, test));
+    Ok(EvalStage { classes: trained.classes.clone(), scores, int8_agree, curve, stable10, ece, reliability })
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -875,6 +881,38 @@ fn section_early(r: &DemoResults, svg_dir: &Path) -> Result<Section> {
     let mut t = Table::new("Accuracy of ours at each snapshot", &["t since command", "f64", "int8"]);
     for (tt, f, q) in &r.eval.curve {
         t.row(vec![Cell::text(format!("{tt:.2} s")), Cell::text(pct(*f)), Cell::text(pct(*q))]);
+    }
+    s.push(Block::Table(t));
+    // Calibration: the confidence sent on CAN against how often the class is right.
+    let used: Vec<&crate::evaluate::ReliabilityBin> = r.eval.reliability.iter().filter(|b| b.n > 0).collect();
+    let svg = chart_svg(
+        svg_dir,
+        "reliability",
+        ChartLabels { title: "reliability of the confidence sent (int8)", x: "confidence, %", y: "accuracy, %" },
+        &[
+            Series { label: "perfectly calibrated", points: vec![(0.0, 0.0), (100.0, 100.0)], color: PALETTE[2] },
+            Series {
+                label: "observed",
+                points: used.iter().map(|b| (100.0 * b.confidence, 100.0 * b.accuracy)).collect(),
+                color: PALETTE[1],
+            },
+        ],
+    )?;
+    s.push(Block::Figure {
+        svg,
+        caption: format!(
+            "Expected calibration error {} over the test releases (15 equal-width bins; the softmax temperature \
+             is fitted on releases held out of training; the monitor sends at most 99 %).",
+            pct(100.0 * r.eval.ece)
+        ),
+    });
+    let mut t = Table::new("Reliability bins", &["mean confidence", "accuracy", "releases"]);
+    for b in used {
+        t.row(vec![
+            Cell::text(pct(100.0 * b.confidence)),
+            Cell::text(pct(100.0 * b.accuracy)),
+            Cell::text(b.n.to_string()),
+        ]);
     }
     s.push(Block::Table(t));
     Ok(s)
