@@ -125,6 +125,8 @@ pub struct SignalCheck {
     filled: usize,
     /// The previous sample was out of range.
     last_out_of_range: bool,
+    /// Sample at which the current loss of the reading began.
+    lost_since: u32,
     /// Length of the current run of identical codes, and the sample it began at.
     run: u16,
     run_start: u32,
@@ -182,6 +184,7 @@ impl SignalCheck {
             head: 0,
             filled: 0,
             last_out_of_range: false,
+            lost_since: 0,
             run: 0,
             run_start: 0,
             live_since_command: false,
@@ -239,6 +242,7 @@ impl SignalCheck {
     fn new_release(&mut self) {
         let vented_rest = self.closed_for >= VENT_SAMPLES;
         self.index = 0;
+        self.lost_since = 0;
         self.latched = None;
         self.live_since_command = false;
         self.run_start = 0;
@@ -299,6 +303,9 @@ impl SignalCheck {
         self.valve_was_open = valve_open;
         let c = adc.0;
         if !(ADC_MIN_VALID..=ADC_MAX_VALID).contains(&c) {
+            if !self.last_out_of_range {
+                self.lost_since = self.index;
+            }
             self.last_out_of_range = true;
             self.run = 0;
             self.pending_jump = None;
@@ -308,7 +315,8 @@ impl SignalCheck {
             // Valid again after a loss: an intermittent signal.
             self.last_out_of_range = false;
             if self.filled > 0 {
-                self.latch(SensorFault::Dropouts, self.index.saturating_sub(1));
+                // Dated to the first lost sample (at the command if the loss began before it).
+                self.latch(SensorFault::Dropouts, self.lost_since.min(self.index));
             }
         }
         if valve_open {
@@ -545,7 +553,7 @@ mod tests {
         let step = release(3000).enumerate().map(|(i, a)| if i >= 900 { AdcCounts(a.0 + 400) } else { a });
         assert_eq!(run(step).map(|d| (d.fault, d.onset)), Some((SensorFault::ImpossibleRate, 900)));
         let drop = release(3000).enumerate().map(|(i, a)| if (500..503).contains(&i) { AdcCounts(0) } else { a });
-        assert_eq!(run(drop).map(|d| d.fault), Some(SensorFault::Dropouts));
+        assert_eq!(run(drop).map(|d| (d.fault, d.onset)), Some((SensorFault::Dropouts, 500)));
     }
 
     #[test]
