@@ -207,7 +207,8 @@ fn train_all_ours(train: &[TraceFeatures], seed: u64) -> Result<(Mlp, QuantParam
     let classes = classes_of(train);
     let (net, _) = crate::train::train_kind(Kind::Ours, train, &classes, seed);
     let calib: Vec<Vec<f64>> = train.iter().flat_map(|d| Kind::Ours.rows(d)).collect();
-    let q = crate::train::quantize(&net, &classes, &calib)?;
+    let mut q = crate::train::quantize(&net, &classes, &calib)?;
+    crate::train::set_class_region(&mut q, train);
     Ok((net, q, classes))
 }
 

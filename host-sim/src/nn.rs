@@ -71,6 +71,13 @@ impl SplitMix {
     pub fn uniform(&mut self) -> f64 {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
+
+    /// Standard normal draw (Box–Muller).
+    pub fn normal(&mut self) -> f64 {
+        let u1 = self.uniform().max(f64::MIN_POSITIVE);
+        let u2 = self.uniform();
+        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+    }
     /// Fisher–Yates shuffle.
     pub fn shuffle<T>(&mut self, v: &mut [T]) {
         for i in (1..v.len()).rev() {
@@ -258,6 +265,13 @@ pub struct TrainConfig {
     pub patience: usize,
     /// Fraction of the training data held out for validation.
     pub validation_fraction: f64,
+    /// Decoupled weight decay per step, as a fraction of the learning rate (AdamW); 0 = none.
+    pub weight_decay: f64,
+    /// σ of Gaussian noise added to every standardised input of a training batch; 0 = none.
+    pub input_noise: f64,
+    /// Networks trained from different initialisations by [`train_best_of`]; the one with the
+    /// lowest validation loss is kept (1 = just the seed's).
+    pub candidates: usize,
     /// Seed of initialisation, split and shuffling.
     pub seed: u64,
 }
@@ -274,6 +288,9 @@ impl TrainConfig {
             max_epochs: 500,
             patience: 3,
             validation_fraction: 0.2,
+            weight_decay: 0.0,
+            input_noise: 0.0,
+            candidates: 1,
             seed,
         }
     }
@@ -295,14 +312,38 @@ pub struct TrainLog {
 /// Trains a classifier on rows `x` (raw features) with labels `y` in `0..n_classes`. Inputs are
 /// standardised with the mean/std of the training split; the weights of the epoch with the
 /// lowest validation loss are kept (Keras `restore_best_weights`).
-pub fn train(x: &[Vec<f64>], y: &[usize], n_classes: usize, cfg: &TrainConfig) -> (Mlp, TrainLog) {
+pub fn train(x: &[Vec<f64>], y: &[usize], groups: &[usize], n_classes: usize, cfg: &TrainConfig) -> (Mlp, TrainLog) {
+    train_with_init(x, y, groups, n_classes, cfg, cfg.seed)
+}
+
+/// [`train`] with the validation split drawn from `cfg.seed` and the initialisation, shuffling
+/// and noise from `init`.
+fn train_with_init(
+    x: &[Vec<f64>],
+    y: &[usize],
+    groups: &[usize],
+    n_classes: usize,
+    cfg: &TrainConfig,
+    init: u64,
+) -> (Mlp, TrainLog) {
     let n_in = x.first().map_or(0, Vec::len);
     let mut rng = SplitMix::new(cfg.seed ^ 0x5eed);
-    let mut order: Vec<usize> = (0..x.len()).collect();
-    rng.shuffle(&mut order);
-    let n_val = ((x.len() as f64) * cfg.validation_fraction).round() as usize;
-    let (val_idx, train_idx) = order.split_at(n_val.min(x.len()));
-    let mut net = Mlp::new(&[n_in, cfg.hidden[0], cfg.hidden[1], n_classes], cfg.activation, cfg.seed);
+    // Validation holds out whole groups (e.g. every snapshot of one release): rows of one
+    // release are near-copies of each other, and a validation split that shares releases with
+    // the training split rewards memorising them, so early stopping would stop on the wrong epoch.
+    let mut group_ids: Vec<usize> = groups.to_vec();
+    group_ids.sort_unstable();
+    group_ids.dedup();
+    rng.shuffle(&mut group_ids);
+    let n_val_groups = ((group_ids.len() as f64) * cfg.validation_fraction).round() as usize;
+    let val_groups: std::collections::HashSet<usize> = group_ids.iter().take(n_val_groups).copied().collect();
+    let (val_idx, train_idx): (Vec<usize>, Vec<usize>) =
+        (0..x.len()).partition(|&i| groups.get(i).is_some_and(|g| val_groups.contains(g)));
+    let mut noise_rng = SplitMix::new(init ^ 0x0015_e000);
+    if init != cfg.seed {
+        rng = SplitMix::new(init ^ 0x5eed);
+    }
+    let mut net = Mlp::new(&[n_in, cfg.hidden[0], cfg.hidden[1], n_classes], cfg.activation, init);
     // Standardisation from the training split only.
     let n = train_idx.len().max(1) as f64;
     for (j, (mean_j, std_j)) in net.in_mean.iter_mut().zip(net.in_std.iter_mut()).enumerate() {
@@ -316,17 +357,30 @@ pub fn train(x: &[Vec<f64>], y: &[usize], n_classes: usize, cfg: &TrainConfig) -
     let val_y: Vec<usize> = val_idx.iter().map(|&i| y[i]).collect();
     let mut adam = Adam::new(&net, cfg.learning_rate);
     let mut best = (f64::INFINITY, net.clone(), 0usize);
-    let mut train_order = train_idx.to_vec();
+    let mut train_order = train_idx.clone();
     let mut epochs = 0;
     for epoch in 1..=cfg.max_epochs {
         epochs = epoch;
         rng.shuffle(&mut train_order);
         for chunk in train_order.chunks(cfg.batch.max(1)) {
-            let bz: Vec<&[f64]> = chunk.iter().map(|&i| z[i].as_slice()).collect();
+            let noisy: Vec<Vec<f64>> = if cfg.input_noise > 0.0 {
+                chunk.iter().map(|&i| z[i].iter().map(|v| v + cfg.input_noise * noise_rng.normal()).collect()).collect()
+            } else {
+                Vec::new()
+            };
+            let bz: Vec<&[f64]> = if noisy.is_empty() {
+                chunk.iter().map(|&i| z[i].as_slice()).collect()
+            } else {
+                noisy.iter().map(Vec::as_slice).collect()
+            };
             let by: Vec<usize> = chunk.iter().map(|&i| y[i]).collect();
             let mut g = net.zero_like();
             net.loss(&bz, &by, Some(&mut g));
             adam.step(&mut net, &g);
+            if cfg.weight_decay > 0.0 {
+                let keep = 1.0 - cfg.learning_rate * cfg.weight_decay;
+                net.layers.iter_mut().flat_map(|l| l.w.iter_mut()).for_each(|w| *w *= keep);
+            }
         }
         let val_loss = if val_z.is_empty() { 0.0 } else { net.loss(&val_z, &val_y, None) };
         if val_loss < best.0 {
@@ -339,6 +393,27 @@ pub fn train(x: &[Vec<f64>], y: &[usize], n_classes: usize, cfg: &TrainConfig) -
     let correct = val_z.iter().zip(&val_y).filter(|(z, &y)| argmax(&net.forward_all(z)[net.layers.len()]) == y).count();
     let val_accuracy = correct as f64 / val_z.len().max(1) as f64;
     (net, TrainLog { epochs, best_epoch, best_val_loss, val_accuracy })
+}
+
+/// Trains `cfg.candidates` networks ([`train`]; the first with `cfg.seed`, the others with
+/// seeds derived from it, all with the same validation split) and keeps the one with the lowest
+/// validation loss: one unlucky initialisation no longer decides the model.
+pub fn train_best_of(
+    x: &[Vec<f64>],
+    y: &[usize],
+    groups: &[usize],
+    n_classes: usize,
+    cfg: &TrainConfig,
+) -> (Mlp, TrainLog) {
+    let mut best: Option<(Mlp, TrainLog)> = None;
+    for i in 0..cfg.candidates.max(1) as u64 {
+        let init = cfg.seed ^ i.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        let (net, log) = train_with_init(x, y, groups, n_classes, cfg, init);
+        if best.as_ref().is_none_or(|b| log.best_val_loss < b.1.best_val_loss) {
+            best = Some((net, log));
+        }
+    }
+    best.unwrap_or_else(|| train(x, y, groups, n_classes, cfg))
 }
 
 /// Adam optimiser state (Kingma & Ba; β1 0.9, β2 0.999, ε 1e-7 as in Keras).
@@ -425,9 +500,9 @@ mod tests {
             y.push(usize::from(a + b > 0.0) + usize::from(a - b > 1.0));
         }
         let cfg = TrainConfig { learning_rate: 1e-2, ..TrainConfig::paper(11) };
-        let (net, log) = train(&x, &y, 3, &cfg);
+        let (net, log) = train(&x, &y, &(0..x.len()).collect::<Vec<_>>(), 3, &cfg);
         assert!(log.val_accuracy > 0.9, "{log:?}");
-        let (net2, log2) = train(&x, &y, 3, &cfg);
+        let (net2, log2) = train(&x, &y, &(0..x.len()).collect::<Vec<_>>(), 3, &cfg);
         assert_eq!(net, net2, "same seed, same model");
         assert_eq!(log, log2);
         let p = net.probabilities(&x[0]);

@@ -8,9 +8,18 @@
 //!   and a per-feature calibration so that the training set's extreme maps to ±127. That one
 //!   affine map is the only floating-point step (correctly rounded IEEE `f32` `×`, `+` and
 //!   `roundf`, never contracted to a fused multiply-add: the same bits on x86 and on the
-//!   Cortex-M4F's FPU, with no `f64` soft-float in the firmware). A value more than [`PLAUSIBLE_MARGIN`] of the training range outside
-//!   that range (per feature, calibrated on the training set) is unlike anything seen in training:
-//!   [`NoDiagnosis::Unfamiliar`]. Otherwise `q` saturates to ±127.
+//!   Cortex-M4F's FPU, with no `f64` soft-float in the firmware). A `q` beyond
+//!   ±127 · (1 + 2 · [`PLAUSIBLE_MARGIN`]) (the map sends the training set's largest magnitude to
+//!   ±127) is unlike anything seen in training: [`NoDiagnosis::Unfamiliar`]. Otherwise `q`
+//!   saturates to ±127.
+//! - **Class region** (the out-of-distribution guard): the model carries, per class and
+//!   feature, the range of `q` over that class's training releases (sampled every 0.1 s from
+//!   [`MIN_RELEASE_S`] on, widened by how far the most extreme training locomotive reaches
+//!   beyond the others). A class is only named if every feature lies within its region,
+//!   widened by [`CLASS_MARGIN_FRACTION`] of the region's width plus [`CLASS_MARGIN_STEPS`]:
+//!   a softmax extrapolates with full confidence far outside its data, so a release whose
+//!   features no training release of the winning class had (a valve that opens seconds late, a
+//!   breakaway at 3.2 bar, a chamber 40 % larger) is [`NoDiagnosis::Unfamiliar`] instead.
 //! - **Layers**: int8 weights (per-output-channel scales for hidden layers, one scale for the
 //!   output layer), int32 bias and accumulator, requantization `rshr(acc · m, 31 + shift)` with
 //!   a Q31 multiplier `m`, ReLU, saturation to 0..=127. Everything is integer: bit-identical on
@@ -33,12 +42,20 @@ use crate::report::{NoDiagnosis, Verdict};
 pub const MAX_WIDTH: usize = 64;
 /// Most classes a model may have.
 pub const MAX_CLASSES: usize = 8;
-/// A feature further outside its training range than this fraction of the range is implausible.
+/// A feature mapped beyond ±127 · (1 + 2 · this) is implausible (see the module docs).
 pub const PLAUSIBLE_MARGIN: f32 = 0.25;
 /// Shortest release (s) on which a verdict is given.
 pub const MIN_RELEASE_S: f32 = 1.0;
 /// Largest share of sensor-fault samples (per mille) tolerated in a release.
 pub const MAX_FAULTY_PERMILLE: u32 = 10;
+/// Widening of a class region at the diagnosis, as a fraction of its width (see the module
+/// docs). The exported regions are already widened for locomotives not in training (a
+/// leave-one-locomotive-out estimate, `host-sim train`); with this widening, none of 950 fresh
+/// clean releases from new locomotives and an independent plant is refused, while releases
+/// outside the classes are (README, "When the monitor says 'I cannot tell'").
+pub const CLASS_MARGIN_FRACTION: f32 = 0.25;
+/// Widening of a class region in int8 input steps, added to [`CLASS_MARGIN_FRACTION`].
+pub const CLASS_MARGIN_STEPS: f32 = 4.0;
 /// Highest confidence the monitor sends, per cent. A calibrated probability is only as good as
 /// the held-out data it was fitted on (a few thousand releases): claiming 100 % would say the
 /// model is never wrong, which no finite evidence supports.
@@ -72,10 +89,11 @@ pub struct QuantModel<'a> {
     pub input_scale: &'a [f32],
     /// Per-input offset of the input map.
     pub input_offset: &'a [f32],
-    /// Per-input smallest mapped value `x · scale + offset` seen in training.
-    pub input_low: &'a [f32],
-    /// Per-input largest mapped value seen in training.
-    pub input_high: &'a [f32],
+    /// Per class (row-major `n_classes × n_inputs`): smallest mapped value
+    /// `round(x · scale + offset)` seen in that class's training releases, rounded down.
+    pub class_low: &'a [i8],
+    /// Per class: largest mapped value seen in that class's training releases, rounded up.
+    pub class_high: &'a [i8],
     /// Layers, first to last.
     pub layers: &'a [QuantLayer<'a>],
     /// `round(65535 · exp(−d / s_logit))` for a logit gap of `d` int8 steps; a gap past the
@@ -90,6 +108,13 @@ pub enum ModelError {
     Shape,
     /// Feature `index` is implausible (non-finite or far outside the training range).
     Implausible {
+        /// Index of the first offending feature.
+        index: usize,
+    },
+    /// The network named `class`, but feature `index` lies outside that class's training region.
+    OutsideClass {
+        /// The class the network named.
+        class: FaultClass,
         /// Index of the first offending feature.
         index: usize,
     },
@@ -117,8 +142,8 @@ impl QuantModel<'_> {
         if n_in == 0
             || n_in > MAX_WIDTH
             || self.input_offset.len() != n_in
-            || self.input_low.len() != n_in
-            || self.input_high.len() != n_in
+            || self.class_low.len() != n_in * self.classes.len()
+            || self.class_high.len() != n_in * self.classes.len()
         {
             return Err(ModelError::Shape);
         }
@@ -164,17 +189,57 @@ impl QuantModel<'_> {
 
     /// Maps `f32` features to int8 inputs; rejects non-finite or implausible values.
     pub fn quantize_input_f32(&self, x: &[f32], out: &mut [i8]) -> Result<(), ModelError> {
-        if x.len() != self.n_inputs() || out.len() != self.n_inputs() {
+        let mut mapped = [0.0f32; MAX_WIDTH];
+        let n = self.map_inputs(x, &mut mapped)?;
+        if out.len() != n {
             return Err(ModelError::Shape);
         }
-        for (i, (&v, o)) in x.iter().zip(out.iter_mut()).enumerate() {
+        for (o, &q) in out.iter_mut().zip(&mapped[..n]) {
+            *o = q.clamp(-127.0, 127.0) as i8;
+        }
+        Ok(())
+    }
+
+    /// The input map `round(v · scale + offset)` of every feature, in `f32`, before saturation;
+    /// returns the number of inputs. The map sends the training set's largest magnitude of each
+    /// feature to ±127, so a value beyond ±127 · (1 + 2 · [`PLAUSIBLE_MARGIN`]) (or non-finite)
+    /// is far outside anything seen in training: [`ModelError::Implausible`].
+    fn map_inputs(&self, x: &[f32], mapped: &mut [f32; MAX_WIDTH]) -> Result<usize, ModelError> {
+        const LIMIT: f32 = 127.0 * (1.0 + 2.0 * PLAUSIBLE_MARGIN);
+        let n = self.n_inputs();
+        if x.len() != n || n > MAX_WIDTH {
+            return Err(ModelError::Shape);
+        }
+        for (i, (&v, m)) in x.iter().zip(mapped.iter_mut()).enumerate() {
             let q = libm::roundf(v * self.input_scale[i] + self.input_offset[i]);
-            let (lo, hi) = (self.input_low[i], self.input_high[i]);
-            let margin = PLAUSIBLE_MARGIN * (hi - lo);
-            if !(q >= lo - margin && q <= hi + margin) {
+            if q.is_nan() || q.abs() > LIMIT {
                 return Err(ModelError::Implausible { index: i });
             }
-            *o = q.clamp(-127.0, 127.0) as i8;
+            *m = q;
+        }
+        Ok(n)
+    }
+
+    /// Checks that the features `x` lie in the training region of output `index` (see the
+    /// module docs).
+    pub fn check_class_region(&self, index: usize, x: &[f32]) -> Result<(), ModelError> {
+        let mut mapped = [0.0f32; MAX_WIDTH];
+        let n = self.map_inputs(x, &mut mapped)?;
+        self.region_check(index, &mapped[..n])
+    }
+
+    /// [`Self::check_class_region`] on mapped inputs.
+    fn region_check(&self, index: usize, mapped: &[f32]) -> Result<(), ModelError> {
+        let n = mapped.len();
+        let class = *self.classes.get(index).ok_or(ModelError::Shape)?;
+        let rows = (self.class_low.get(index * n..(index + 1) * n), self.class_high.get(index * n..(index + 1) * n));
+        let (Some(low), Some(high)) = rows else { return Err(ModelError::Shape) };
+        for (i, ((&q, &lo), &hi)) in mapped.iter().zip(low).zip(high).enumerate() {
+            let (lo, hi) = (f32::from(lo), f32::from(hi));
+            let margin = CLASS_MARGIN_FRACTION * (hi - lo) + CLASS_MARGIN_STEPS;
+            if !(q >= lo - margin && q <= hi + margin) {
+                return Err(ModelError::OutsideClass { class, index: i });
+            }
         }
         Ok(())
     }
@@ -221,20 +286,40 @@ impl QuantModel<'_> {
         Ok(Inference { index, class: self.classes[index], logits, n_classes: n, confidence_pct })
     }
 
-    /// Quantizes `x` (narrowed to `f32`, see [`Self::quantize_input`]) and runs the network.
+    /// Narrows `x` to `f32` (see [`Self::quantize_input`]) and classifies it
+    /// ([`Self::classify_f32`]).
     pub fn classify(&self, x: &[f64]) -> Result<Inference, ModelError> {
-        let mut q = [0i8; MAX_WIDTH];
-        let n = self.n_inputs().min(MAX_WIDTH);
-        self.quantize_input(x, &mut q[..n])?;
-        self.infer(&q[..n])
+        if x.len() > MAX_WIDTH {
+            return Err(ModelError::Shape);
+        }
+        let mut narrow = [0.0f32; MAX_WIDTH];
+        for (d, &v) in narrow.iter_mut().zip(x) {
+            *d = v as f32;
+        }
+        self.classify_f32(&narrow[..x.len()])
     }
 
-    /// Quantizes the `f32` features `x` and runs the network.
-    pub fn classify_f32(&self, x: &[f32]) -> Result<Inference, ModelError> {
+    /// Runs the network on the `f32` features `x` without the class-region check: the class
+    /// the network prefers, whether or not its training data resembled `x`.
+    pub fn classify_unguarded(&self, x: &[f32]) -> Result<Inference, ModelError> {
         let mut q = [0i8; MAX_WIDTH];
         let n = self.n_inputs().min(MAX_WIDTH);
         self.quantize_input_f32(x, &mut q[..n])?;
         self.infer(&q[..n])
+    }
+
+    /// Quantizes the `f32` features `x`, runs the network and checks that `x` lies in the
+    /// training region of the class it names ([`Self::check_class_region`]).
+    pub fn classify_f32(&self, x: &[f32]) -> Result<Inference, ModelError> {
+        let mut mapped = [0.0f32; MAX_WIDTH];
+        let n = self.map_inputs(x, &mut mapped)?;
+        let mut q = [0i8; MAX_WIDTH];
+        for (o, &m) in q.iter_mut().zip(&mapped[..n]) {
+            *o = m.clamp(-127.0, 127.0) as i8;
+        }
+        let inf = self.infer(&q[..n])?;
+        self.region_check(inf.index, &mapped[..n])?;
+        Ok(inf)
     }
 }
 
@@ -326,8 +411,8 @@ mod tests {
     static CLASSES: [FaultClass; 2] = [FaultClass::Normal, FaultClass::AirLeak];
     static SCALE: [f32; 2] = [10.0, 10.0];
     static OFFSET: [f32; 2] = [0.0, -5.0];
-    static LOW: [f32; 2] = [-100.0, -100.0];
-    static HIGH: [f32; 2] = [100.0, 100.0];
+    static LOW: [i8; 4] = [-100, -100, -100, -100];
+    static HIGH: [i8; 4] = [100, 100, 100, 100];
     // Hidden: h0 = relu(x0 - x1), h1 = relu(x1 - x0); output: logits (h0, h1).
     static W0: [i8; 4] = [64, -64, -64, 64];
     static W1: [i8; 4] = [100, 0, 0, 100];
@@ -348,8 +433,8 @@ mod tests {
         classes: &CLASSES,
         input_scale: &SCALE,
         input_offset: &OFFSET,
-        input_low: &LOW,
-        input_high: &HIGH,
+        class_low: &LOW,
+        class_high: &HIGH,
         layers: &LAYERS,
         exp_table: &EXP,
     };
@@ -373,15 +458,35 @@ mod tests {
     #[test]
     fn implausible_and_malformed_inputs_are_rejected() {
         let mut q = [0i8; 2];
-        assert_eq!(TOY.quantize_input(&[15.1, 0.0], &mut q), Err(ModelError::Implausible { index: 0 }));
+        // Mapped beyond ±127 · 1.5 = ±190.5: far outside anything seen in training.
+        assert_eq!(TOY.quantize_input(&[19.1, 0.0], &mut q), Err(ModelError::Implausible { index: 0 }));
         assert_eq!(TOY.quantize_input(&[0.0, f64::NAN], &mut q), Err(ModelError::Implausible { index: 1 }));
-        // Within the margin (±150): saturates instead.
-        TOY.quantize_input(&[14.0, 0.5], &mut q).unwrap();
+        // Within the limit: saturates instead.
+        TOY.quantize_input(&[19.0, 0.5], &mut q).unwrap();
         assert_eq!(q, [127, 0]);
         assert_eq!(TOY.quantize_input(&[0.0], &mut q), Err(ModelError::Shape));
         assert_eq!(TOY.infer(&[0, 0, 0]), Err(ModelError::Shape));
         let broken = QuantModel { classes: &CLASSES[..1], ..TOY };
         assert_eq!(broken.validate(), Err(ModelError::Shape));
+    }
+
+    #[test]
+    fn a_class_is_named_only_inside_its_training_region() {
+        // Class 0 (normal) saw feature 0 only up to q = 20; widened by 0.25 · 120 + 4 = 34 steps.
+        static NARROW_HIGH: [i8; 4] = [20, 100, 100, 100];
+        let m = QuantModel { class_high: &NARROW_HIGH, ..TOY };
+        m.validate().unwrap();
+        let inside = m.classify(&[5.4, 1.0]).unwrap(); // q = [54, 5]: on the widened edge
+        assert_eq!(inside.class, FaultClass::Normal);
+        let far = [5.6f32, 1.0]; // q = [56, 5]
+        assert_eq!(m.classify_unguarded(&far).unwrap().class, FaultClass::Normal, "the network still says normal");
+        assert_eq!(m.classify_f32(&far), Err(ModelError::OutsideClass { class: FaultClass::Normal, index: 0 }));
+        // Air leak's region is wide: the same feature does not make an air-leak input unfamiliar.
+        assert_eq!(m.classify(&[5.6, 9.0]).unwrap().class, FaultClass::AirLeak);
+        // Far outside the class region but within the global limit: outside the class, not implausible.
+        assert_eq!(m.classify(&[15.0, 1.0]), Err(ModelError::OutsideClass { class: FaultClass::Normal, index: 0 }));
+        let short = QuantModel { class_low: &LOW[..2], ..TOY };
+        assert_eq!(short.validate(), Err(ModelError::Shape), "one region row per class");
     }
 
     #[test]
