@@ -5,8 +5,8 @@
 #
 # Traces: the 6 test and 6 `_0000` training traces of tests/data/small (all six classes), the
 # sensor-fault traces of tests/data/sensor_fault (open circuit, frozen, spikes, lost bits,
-# noisy, clipped: every kind of plausibility check that closes a diagnosis), and
-# one release cut at 15 s (made here from a small-set trace), so that the end of the input, not
+# noisy, clipped: every kind of plausibility check that closes a diagnosis), the releases
+# outside the five classes of tests/data/independent, and one release cut at 15 s (made here from a small-set trace), so that the end of the input, not
 # the 60 s window, closes the diagnosis (Pipeline::close).
 #
 # The firmware plays a trace compiled into flash (firmware/build.rs, PBM_FW_TRACE), so the
@@ -39,6 +39,9 @@ for class in normal air_leak orifice_block leak_and_block low_supply orifice_mis
     TRACES+=("tests/data/small/traces/test/${class}_0000.csv" "tests/data/small/traces/train/${class}_0000.csv")
 done
 TRACES+=(tests/data/sensor_fault/*.csv)
+# Releases outside the five classes from the independent plant: the class-region and steady-supply
+# rules of the out-of-distribution guard, in f32 on both targets.
+TRACES+=(tests/data/independent/unfamiliar_*.csv)
 # A release cut short: metadata, header and the first 1500 samples (15 s) of a small-set trace.
 SHORT="$WORK/orifice_block_cut_15s.csv"
 awk '/^#/ || /^t_s/ {print; next} {if (++n > 1500) exit; print}' \

@@ -44,6 +44,13 @@ pub const MAX_WIDTH: usize = 64;
 pub const MAX_CLASSES: usize = 8;
 /// A feature mapped beyond ±127 · (1 + 2 · this) is implausible (see the module docs).
 pub const PLAUSIBLE_MARGIN: f32 = 0.25;
+/// Largest fall of the chamber pressure while the valve is open (bar; see
+/// [`crate::features::PhaseTracker::max_drop`]) in a release the classes describe. A larger fall
+/// means the supply was not steady (a hunting regulator, an interrupted supply): a release no
+/// class describes, whatever the network says. Clean releases stay below 0.04 bar even with
+/// three times the transducer noise; a hunting regulator or a 1 s supply cut fell 0.14–0.47 bar
+/// in the independent plant's releases (README).
+pub const MAX_PRESSURE_DROP_BAR: f32 = 0.1;
 /// Shortest release (s) on which a verdict is given.
 pub const MIN_RELEASE_S: f32 = 1.0;
 /// Largest share of sensor-fault samples (per mille) tolerated in a release.
@@ -375,8 +382,9 @@ pub fn diagnose(features: &impl AsRef<ReleaseFeatures>) -> Verdict {
 /// 1. a sensor fault in the latest sample, or more than [`MAX_FAULTY_PERMILLE`] ‰ faulty
 ///    samples, is [`NoDiagnosis::SensorFault`];
 /// 2. less than [`MIN_RELEASE_S`] of release is [`NoDiagnosis::TooShort`];
-/// 3. features outside the plausible range (or a model that does not fit them) are
-///    [`NoDiagnosis::Unfamiliar`];
+/// 3. a pressure that fell more than [`MAX_PRESSURE_DROP_BAR`] while the valve was open,
+///    features outside the plausible range or outside the named class's region (or a model
+///    that does not fit them) are [`NoDiagnosis::Unfamiliar`];
 /// 4. otherwise the network's class and confidence.
 pub fn diagnose_with(model: &QuantModel<'_>, features: &ReleaseFeatures) -> Verdict {
     let faulty = u64::from(features.faulty_samples()) * 1000;
@@ -391,7 +399,7 @@ pub fn diagnose_with(model: &QuantModel<'_>, features: &ReleaseFeatures) -> Verd
     if features.t_now() < MIN_RELEASE_S {
         return Verdict::CannotDiagnose(NoDiagnosis::TooShort);
     }
-    if model.n_inputs() != N_OURS {
+    if model.n_inputs() != N_OURS || features.phase().max_drop() > MAX_PRESSURE_DROP_BAR {
         return Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar);
     }
     match model.classify_f32(&features.ours()) {
@@ -534,6 +542,24 @@ mod tests {
         assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::SensorFault(SensorFault::ShortCircuit)));
         let fx = release(|_| adc_from_bar(BarG(0.0)), 50);
         assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::TooShort));
+        // A release whose plateau sags by 0.3 bar over 4 s (a supply that hunts or is cut):
+        // with the valve open and a steady supply the pressure never falls, so no class
+        // describes it.
+        let ramp = |i: u32| (0.004 * f64::from(i)).min(7.7);
+        let sag = |i: u32| {
+            let phase = (f64::from(i) - 3000.0) / 400.0;
+            if (0.0..1.0).contains(&phase) {
+                ramp(i) - 0.3 * libm::sin(core::f64::consts::PI * phase)
+            } else {
+                ramp(i)
+            }
+        };
+        let noise = |i: u32| if i % 2 == 0 { 0.01 } else { -0.01 };
+        let fx = release(|i| adc_from_bar(BarG(sag(i) + noise(i))), 4000);
+        assert!(fx.phase().max_drop() > 0.25, "{}", fx.phase().max_drop());
+        assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar));
+        let fx = release(|i| adc_from_bar(BarG(ramp(i) + noise(i))), 4000);
+        assert!(fx.phase().max_drop() < 0.02, "{}", fx.phase().max_drop());
         // A chamber that jumps to 9 bar and stays there is no brake of the training set.
         let fx = release(|_| adc_from_bar(BarG(9.0)), 6000);
         assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar));
