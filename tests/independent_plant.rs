@@ -8,13 +8,10 @@ use pbm::pipeline::Pipeline;
 use pbm::report::Verdict;
 use pbm::{AdcCounts, FaultClass};
 
+mod common;
+
 fn codes(name: &str) -> Vec<u16> {
-    let path = format!("{}/tests/data/independent/{name}", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    text.lines()
-        .filter(|l| !l.starts_with('#') && !l.starts_with("t_s"))
-        .map(|l| l.split(',').nth(1).and_then(|c| c.trim().parse().ok()).unwrap_or_else(|| panic!("{path}: {l}")))
-        .collect()
+    common::adc_codes(&format!("independent/{name}"))
 }
 
 /// The closing verdict and every verdict sent on the bus.

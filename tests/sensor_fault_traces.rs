@@ -9,13 +9,10 @@ use pbm::report::{NoDiagnosis, Verdict};
 use pbm::sensor::SensorFault;
 use pbm::AdcCounts;
 
+mod common;
+
 fn codes(name: &str) -> Vec<u16> {
-    let path = format!("{}/tests/data/sensor_fault/{name}", env!("CARGO_MANIFEST_DIR"));
-    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
-    text.lines()
-        .filter(|l| !l.starts_with('#') && !l.starts_with("t_s"))
-        .map(|l| l.split(',').nth(1).and_then(|c| c.trim().parse().ok()).unwrap_or_else(|| panic!("{path}: {l}")))
-        .collect()
+    common::adc_codes(&format!("sensor_fault/{name}"))
 }
 
 #[test]

@@ -513,7 +513,9 @@ fn region_step(v: f32, up: bool) -> i8 {
 /// A region drawn from a few locomotives is too narrow for the next one, whose own tolerances
 /// shift its features. Each side is therefore widened by the most that any single locomotive
 /// extends it beyond the others (a leave-one-locomotive-out jackknife): the next locomotive is
-/// expected to stick out no further than the most extreme one seen did.
+/// expected to stick out no further than the most extreme one seen did. A class seen on one
+/// locomotive only gets no widening: its region says just what was seen, and the core then
+/// refuses more releases of other locomotives rather than guess.
 pub fn set_class_region<'a>(q: &mut QuantParams, data: impl IntoIterator<Item = &'a TraceFeatures>) {
     let n = q.input_scale.len().min(N_OURS);
     let width = q.input_scale.len();
