@@ -49,6 +49,7 @@ fn releases_outside_the_classes_and_broken_sensors_get_no_brake_class() {
         "unfamiliar_short_stroke_00.csv",
         "unfamiliar_regulator_hunting_00.csv",
         "unfamiliar_supply_dropout_vent_00.csv",
+        "unfamiliar_supply_ramp_00.csv",
         "sensor_adc_10bit_start_normal_0.csv",
         "sensor_stuck_last_good_mid_air_leak_0.csv",
         "sensor_bit_flip_mid_low_supply_0.csv",

@@ -51,6 +51,11 @@ pub const PLAUSIBLE_MARGIN: f32 = 0.25;
 /// three times the transducer noise; a hunting regulator or a 1 s supply cut fell 0.14–0.47 bar
 /// in the independent plant's releases (README).
 pub const MAX_PRESSURE_DROP_BAR: f32 = 0.1;
+/// Largest [`crate::features::fill_speed_up`] of a release the classes describe:
+/// with a steady supply the fill below breakaway never speeds up (clean releases: at most 1.04,
+/// even with three times the transducer noise). A supply that rises slowly during the release
+/// (1.32–1.34 in the independent plant's releases) otherwise reads as a blocked orifice.
+pub const MAX_FILL_SPEED_UP: f32 = 1.15;
 /// Shortest release (s) on which a verdict is given.
 pub const MIN_RELEASE_S: f32 = 1.0;
 /// Largest share of sensor-fault samples (per mille) tolerated in a release.
@@ -382,7 +387,8 @@ pub fn diagnose(features: &impl AsRef<ReleaseFeatures>) -> Verdict {
 /// 1. a sensor fault in the latest sample, or more than [`MAX_FAULTY_PERMILLE`] ‰ faulty
 ///    samples, is [`NoDiagnosis::SensorFault`];
 /// 2. less than [`MIN_RELEASE_S`] of release is [`NoDiagnosis::TooShort`];
-/// 3. a pressure that fell more than [`MAX_PRESSURE_DROP_BAR`] while the valve was open,
+/// 3. a pressure that fell more than [`MAX_PRESSURE_DROP_BAR`] while the valve was open or a
+///    fill that sped up below breakaway ([`MAX_FILL_SPEED_UP`]): a supply that was not steady;
 ///    features outside the plausible range or outside the named class's region (or a model
 ///    that does not fit them) are [`NoDiagnosis::Unfamiliar`];
 /// 4. otherwise the network's class and confidence.
@@ -399,10 +405,13 @@ pub fn diagnose_with(model: &QuantModel<'_>, features: &ReleaseFeatures) -> Verd
     if features.t_now() < MIN_RELEASE_S {
         return Verdict::CannotDiagnose(NoDiagnosis::TooShort);
     }
-    if model.n_inputs() != N_OURS || features.phase().max_drop() > MAX_PRESSURE_DROP_BAR {
+    let x = features.ours();
+    let unsteady_supply = features.phase().max_drop() > MAX_PRESSURE_DROP_BAR
+        || crate::features::fill_speed_up(&x).is_some_and(|r| r > MAX_FILL_SPEED_UP);
+    if model.n_inputs() != N_OURS || unsteady_supply {
         return Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar);
     }
-    match model.classify_f32(&features.ours()) {
+    match model.classify_f32(&x) {
         Ok(inf) => Verdict::Class { class: inf.class, confidence_pct: inf.confidence_pct.min(MAX_CONFIDENCE_PCT) },
         Err(_) => Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar),
     }
@@ -560,6 +569,21 @@ mod tests {
         assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar));
         let fx = release(|i| adc_from_bar(BarG(ramp(i) + noise(i))), 4000);
         assert!(fx.phase().max_drop() < 0.02, "{}", fx.phase().max_drop());
+        let speed_up = crate::features::fill_speed_up(&fx.ours());
+        assert!(speed_up.is_some_and(|r| (0.95..1.05).contains(&r)), "{speed_up:?}");
+        // A fill that speeds up: 0.4 bar/s to 1 bar, then 0.8 bar/s (a supply still rising).
+        let rising = |i: u32| {
+            let t = f64::from(i) / 100.0;
+            if t < 2.5 {
+                0.4 * t
+            } else {
+                (1.0 + 0.8 * (t - 2.5)).min(7.7)
+            }
+        };
+        let fx = release(|i| adc_from_bar(BarG(rising(i) + noise(i))), 4000);
+        let speed_up = crate::features::fill_speed_up(&fx.ours());
+        assert!(speed_up.is_some_and(|r| r > 1.8), "{speed_up:?}");
+        assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar));
         // A chamber that jumps to 9 bar and stays there is no brake of the training set.
         let fx = release(|_| adc_from_bar(BarG(9.0)), 6000);
         assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar));

@@ -21,7 +21,7 @@ use crate::estimator::Estimates;
 use crate::monitor::MonitorStep;
 use crate::sensor::SensorFault;
 use crate::units::PressureQ24;
-pub use physics::{PhaseTracker, N_PHYSICS, PHYSICS_NAMES};
+pub use physics::{fill_speed_up, PhaseTracker, INDEX_FILL_RATIO, INDEX_P_MAX, N_PHYSICS, PHYSICS_NAMES};
 pub use stats::{SignalStats, N_STATS, STAT_NAMES};
 
 /// Number of online-estimator parameters in [`ReleaseFeatures::theta`].

@@ -107,6 +107,24 @@ pub struct PhaseTracker {
     max_drop: f32,
 }
 
+/// Index in [`PhaseTracker::values`] of the first value after the times and band slopes.
+const AFTER_BANDS: usize = 1 + LEVELS_BAR.len() + BANDS_BAR.len();
+/// Index of `p_max` in [`PhaseTracker::values`] (and in the classifier's features).
+pub const INDEX_P_MAX: usize = AFTER_BANDS + 2;
+/// Index of `ratio_1_2_over_0.3_1` in [`PhaseTracker::values`] (and in the classifier's features).
+pub const INDEX_FILL_RATIO: usize = AFTER_BANDS + 9;
+
+/// How much faster the chamber filled from 1 to 2 bar g than from 0.3 to 1 bar g (the ratio of
+/// the two band slopes, read from the feature vector `v`), once the pressure has passed 2 bar g;
+/// `None` before. Below breakaway the volume is fixed and a steady supply's inlet is choked, so
+/// the inflow is constant and the fill can only slow down (a leak) or keep its pace: measured at
+/// most 1.04 on clean releases with three times the transducer noise. A fill that speeds up was
+/// fed by a supply still rising.
+pub fn fill_speed_up(v: &[f32]) -> Option<f32> {
+    let (p_max, ratio) = (*v.get(INDEX_P_MAX)?, *v.get(INDEX_FILL_RATIO)?);
+    (p_max > BANDS_BAR[1].1 && ratio > 0.0).then_some(ratio)
+}
+
 /// Number of physics features in [`PhaseTracker::values`].
 pub const N_PHYSICS: usize = 1 + LEVELS_BAR.len() + BANDS_BAR.len() + 4 + 3 + 3;
 
@@ -286,7 +304,7 @@ impl PhaseTracker {
         for i in 0..BANDS_BAR.len() {
             v[b + i] = self.band_slope(i);
         }
-        let o = b + BANDS_BAR.len();
+        let o = AFTER_BANDS;
         v[o] = self.p_now;
         v[o + 1] = self.slope_now;
         v[o + 2] = self.p_max;
