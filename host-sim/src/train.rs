@@ -704,7 +704,13 @@ pub fn read_quant(path: &Path) -> Result<QuantParams> {
     let classes = classes.ok_or_else(|| bad("classes"))?;
     let input_scale: Vec<f32> = parse(&field("input_scale")?).ok_or_else(|| bad("input_scale"))?;
     let input_offset: Vec<f32> = parse(&field("input_offset")?).ok_or_else(|| bad("input_offset"))?;
-    let class_low: Vec<i8> = parse(&field("class_low")?).ok_or_else(|| bad("class_low"))?;
+    let class_low: Vec<i8> = parse(&field("class_low").map_err(|_| {
+        anyhow::anyhow!(
+            "{}: bad or missing `class_low` (a model written before the class regions? retrain it with `host-sim train`)",
+            path.display()
+        )
+    })?)
+    .ok_or_else(|| bad("class_low"))?;
     let class_high: Vec<i8> = parse(&field("class_high")?).ok_or_else(|| bad("class_high"))?;
     let table: Vec<u16> = parse(&field("exp_table")?).ok_or_else(|| bad("exp_table"))?;
     let exp_table: [u16; 256] = table.try_into().map_err(|_| bad("exp_table"))?;
