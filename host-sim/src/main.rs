@@ -2,8 +2,8 @@
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
-use host_sim::simulate::{simulate, write_csv, Engine};
 use pbm::TwinParams;
+use pbm_lab::simulate::{simulate, write_csv, Engine};
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -19,29 +19,29 @@ enum Command {
     /// Simulate one release (noise-free) and write its trace as CSV (t_s,p_bar,x_mm).
     Simulate(SimulateArgs),
     /// Generate a synthetic fleet data set (SPEC §7 layout, ADC traces, manifest, truth).
-    Generate(host_sim::generate::GenerateArgs),
+    Generate(pbm_lab::generate::GenerateArgs),
     /// Model-discrepancy audit of a data set of releases of one locomotive (issue 9).
-    Audit(host_sim::audit::AuditArgs),
+    Audit(pbm_lab::audit::AuditArgs),
     /// Hidden-effect sweep of the audit: hit rate over seeded random mechanisms.
-    AuditSweep(host_sim::audit_sweep::SweepArgs),
+    AuditSweep(pbm_lab::audit_sweep::SweepArgs),
     /// The audit on real pneumatic data (MetroPT-3 head, SPEC §8).
-    AuditMetro(host_sim::metro::MetroArgs),
+    AuditMetro(pbm_lab::metro::MetroArgs),
     /// Print throughput figures (twin, monitor pipeline, generate) and write bench/host.md.
-    Bench(host_sim::bench::BenchArgs),
+    Bench(pbm_lab::bench::BenchArgs),
     /// Replay a trace or a data set through the monitor pipeline (results CSV, summary, plots).
-    Replay(host_sim::replay::ReplayArgs),
+    Replay(pbm_lab::replay::ReplayArgs),
     /// CAN reports: decode a candump log or interface as the cab display shows it, send, demo log.
-    Can(host_sim::can_cmd::CanArgs),
+    Can(pbm_lab::can_cmd::CanArgs),
     /// Batch least-squares fit of twin parameters per trace (the paper's θ or the fault parameters).
-    Fit(host_sim::fit::FitArgs),
+    Fit(pbm_lab::fit::FitArgs),
     /// Accuracy of the online estimator against known truth: table, CSV, scatter plots.
-    Estimate(host_sim::estimate::EstimateArgs),
+    Estimate(pbm_lab::estimate::EstimateArgs),
     /// Train the paper's three classifiers and ours; quantize ours to int8.
-    Train(host_sim::train::TrainArgs),
+    Train(pbm_ml::train::TrainArgs),
     /// Accuracy and confusion matrices of the trained classifiers on a data set's test split.
-    Evaluate(host_sim::evaluate::EvaluateArgs),
+    Evaluate(pbm_ml::evaluate::EvaluateArgs),
     /// The main job in one run: fleet data, training, evaluation, CAN replay, audit, report/index.html.
-    Demo(host_sim::demo::DemoArgs),
+    Demo(pbm_demo::demo::DemoArgs),
 }
 
 #[derive(clap::Args)]
@@ -73,18 +73,18 @@ fn main() {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Simulate(args) => cmd_simulate(&args),
-        Command::Generate(args) => host_sim::generate::run(&args),
-        Command::Audit(args) => host_sim::audit::run(&args),
-        Command::AuditSweep(args) => host_sim::audit_sweep::run(&args),
-        Command::AuditMetro(args) => host_sim::metro::run(&args),
-        Command::Bench(args) => host_sim::bench::run(&args),
-        Command::Replay(args) => host_sim::replay::run(&args),
-        Command::Can(args) => host_sim::can_cmd::run(&args),
-        Command::Fit(args) => host_sim::fit::run(&args),
-        Command::Estimate(args) => host_sim::estimate::run(&args),
-        Command::Train(args) => host_sim::train::run(&args),
-        Command::Evaluate(args) => host_sim::evaluate::run(&args),
-        Command::Demo(args) => host_sim::demo::run(&args),
+        Command::Generate(args) => pbm_lab::generate::run(&args),
+        Command::Audit(args) => pbm_lab::audit_plot::run(&args),
+        Command::AuditSweep(args) => pbm_lab::audit_sweep::run(&args),
+        Command::AuditMetro(args) => pbm_lab::metro::run(&args),
+        Command::Bench(args) => pbm_lab::bench::run(&args),
+        Command::Replay(args) => pbm_lab::replay::run(&args),
+        Command::Can(args) => pbm_lab::can_cmd::run(&args),
+        Command::Fit(args) => pbm_lab::fit::run(&args),
+        Command::Estimate(args) => pbm_lab::estimate::run(&args),
+        Command::Train(args) => pbm_ml::train::run(&args),
+        Command::Evaluate(args) => pbm_ml::evaluate::run(&args),
+        Command::Demo(args) => pbm_demo::demo::run(&args),
     };
     if let Err(e) = result {
         eprintln!("error: {e:#}");
@@ -100,7 +100,7 @@ fn cmd_simulate(a: &SimulateArgs) -> Result<()> {
         TwinParams::nominal().with_orifice_mm(a.orifice_mm).with_leak_mm(a.leak_mm).with_supply_bar_g(a.supply_bar);
     let trace = simulate(a.engine, &params, a.duration).map_err(|e| anyhow::anyhow!("invalid parameters: {e}"))?;
     if let Some(path) = &a.plot {
-        host_sim::simulate::write_release_svg(path, &params, a.duration)?;
+        pbm_lab::simulate::write_release_svg(path, &params, a.duration)?;
     }
     let meta = [
         ("source", format!("host-sim simulate --engine {:?}", a.engine).to_lowercase()),

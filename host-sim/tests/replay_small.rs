@@ -1,10 +1,10 @@
 //! Replay of the committed small data set (tests/data/small) through the core monitor, with
 //! known outcomes per class; a bad file in a data set is reported and the rest still replays.
 
-use host_sim::dataset::{read_manifest, MANIFEST};
-use host_sim::generate::{generate, GenerateArgs};
-use host_sim::replay::{items, replay_all, replay_item, replay_trace, summarise, TraceSummary, RESULT_HEADER};
-use host_sim::trace::{parse_trace, read_trace, Samples};
+use pbm_io::dataset::{read_manifest, MANIFEST};
+use pbm_io::trace::{parse_trace, read_trace, Samples};
+use pbm_lab::generate::{generate, GenerateArgs};
+use pbm_lab::replay::{items, replay_all, replay_item, replay_trace, summarise, TraceSummary, RESULT_HEADER};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -25,7 +25,7 @@ fn truth(dir: &Path) -> BTreeMap<String, BTreeMap<String, String>> {
         .collect()
 }
 
-fn replay_small() -> Vec<(String, TraceSummary, Vec<host_sim::replay::ReplaySample>)> {
+fn replay_small() -> Vec<(String, TraceSummary, Vec<pbm_lab::replay::ReplaySample>)> {
     let dir = small();
     read_manifest(&dir)
         .unwrap()
@@ -258,7 +258,7 @@ fn replay_diagnosis_names_every_trained_class() {
     let dir = small();
     for m in read_manifest(&dir).unwrap() {
         let (_, report) =
-            host_sim::replay::replay_trace_with_diagnosis(&read_trace(&dir.join(&m.file)).unwrap()).unwrap();
+            pbm_lab::replay::replay_trace_with_diagnosis(&read_trace(&dir.join(&m.file)).unwrap()).unwrap();
         let report = report.unwrap_or_else(|| panic!("{}: no diagnosis closed", m.file));
         assert_eq!(report.time_since_release_cs, 6000, "{}: closed by the 60 s timeout", m.file);
         match pbm::FaultClass::from_label(&m.label) {

@@ -1,0 +1,1316 @@
+//! `host-sim audit`: model-discrepancy audit of a data set of releases of one locomotive.
+//!
+//! # Input
+//!
+//! A SPEC §7 data set directory (`manifest.csv` + traces, `t_s,adc` or `t_s,p_bar`) holding
+//! releases of **one locomotive** at its documented configuration, at least a few seconds each,
+//! 100 Hz from the release command. Ten or more releases are recommended: the audit works on the
+//! mean trace, whose noise sets the floor of the extended NMSE. A synthetic one with a hidden
+//! mechanism:
+//!
+//! ```text
+//! host-sim generate --out D --locomotives 1 --split shared --classes normal \
+//!     --per-class 20 --test-per-class 0 --seed 7 --effect valve_lag=0.5 [--effect NAME=VALUE …]
+//! host-sim audit D --json D/audit.json --plot D/plots --report
+//! ```
+//!
+//! # Method
+//!
+//! 1. **Data**: every trace of the manifest, converted to bar g. Traces are grouped by their
+//!    documented configuration (`# supply_bar_g`, `# orifice_mm`, `# leak_mm` metadata or any
+//!    key containing `supply`, `orifice` or `leak` but not `laminar`/`effect`; undocumented
+//!    values are the nominal brake). Releases of one configuration have the same noise-free
+//!    response, so each group is fitted through its *mean* trace (noise σ/√n). The noise σ of
+//!    every trace is estimated from the data (MAD of second differences), never assumed.
+//! 2. **Base fit**: the fixed-point core twin ([`pbm::Twin`], ≈ 1 ms per 60 s release) with six
+//!    base parameters free inside the locomotive's manufacturing tolerance (SPEC §5): Cf, V0, F0,
+//!    K, friction (Fc and Fs together) each × (1 ± 5.5 %), supply ± 0.035 bar. Bounding the base
+//!    to its tolerance is what lets an extension show up at all: a supply temperature, for
+//!    instance, is *exactly* a Cf scale (both orifice flows scale by sqrt(T/T0)), so only the
+//!    part outside the Cf tolerance is attributable to it (its magnitude is then reported at the
+//!    nominal Cf, with the Cf tolerance in its uncertainty).
+//! 3. **Diagnostics** of the base residual: by release phase (filling at rest, stroke, end stop
+//!    and plateau, from the twin's travel), by time, Ljung–Box whiteness, cross-correlation with
+//!    the twin's pressure rate (the input the chamber sees) and the phase indicator.
+//! 4. **Candidates**: base + each mechanism of [`crate::plant::Effect`] (the extended core twin,
+//!    the same terms the firmware can run), then the pairs of the [`PAIR_POOL`] best singles.
+//!    Each is a bounded Levenberg–Marquardt fit (own implementation with an active set on the
+//!    box bounds: argmin's Nelder–Mead needs several hundred twin runs per fit where LM needs
+//!    8 per iteration, and its Jacobian columns run in parallel) on every [`DECIMATE`]-th
+//!    sample. Every candidate is screened ([`SCREEN_ITER`] iterations from several starting
+//!    magnitudes, one of them "off", so no candidate ends worse than the base it contains),
+//!    the best [`REFINED_SINGLES`] singles and [`REFINED_PAIRS`] pairs are refined to
+//!    convergence. When the best pair could be named, each of its mechanisms is refitted alone
+//!    from the pair's optimum, and a pair with one mechanism switched off counts as that single,
+//!    so a second mechanism is only named when it is really needed. ≈ 3 000 twin runs, a few
+//!    seconds on two cores.
+//! 5. **Decision**: BIC with unknown noise scale, corrected for residual correlation:
+//!    ΔBIC = n_eff ln(RSS_base/RSS) − Δk ln n_eff, n_eff = n (1 − ρ)/(1 + ρ) with ρ the lag-1
+//!    autocorrelation of the best model's residual (a smooth leftover misfit counts as few
+//!    observations, so it cannot make a tiny improvement look significant). A mechanism is named
+//!    when ΔBIC > [`BIC_THRESHOLD`] *and* it cuts the RSS by at least [`MIN_RSS_RATIO`]; the best
+//!    pair replaces the best single under the same two rules against that single. Otherwise
+//!    `none`. The magnitude's uncertainty is the 1-σ of the Gauss–Newton covariance s² (JᵀJ)⁻¹
+//!    at the optimum, inflated by n/n_eff.
+//!
+//! # Output
+//!
+//! The verdict ([`AuditOutcome`], `--json`: see [`AuditOutcome::to_json`]; a pair is `a+b` with
+//! magnitude `[ma, mb]`), base and extended NMSE (SPEC §6 over samples with P > 0.2 bar g, against
+//! the mean measured trace; the per-trace mean is reported too), `--plot DIR` (measured vs base
+//! vs extended, residuals with phase boundaries, residual autocorrelation) and `--report [FILE]`
+//! (one self-contained HTML page). For other tools: [`audit_dir`], [`write_outputs`],
+//! [`crate::audit_plot::svgs`] and [`crate::audit_plot::html_section`].
+//!
+//! # Limits (measured in bench/audit_sweep.md)
+//!
+//! A mechanism is only identifiable where the base twin, within the locomotive's tolerance,
+//! cannot mimic it: `gas_temperature` between ≈ 235 K and ≈ 375 K is a Cf change inside the ± 5 %
+//! spread (`none` is then the right answer), a `regulator_droop` below ≈ 0.4 bar is mostly a Cf
+//! and supply change, and a `sensor_gain` closer to 1 than ≈ 0.02 is partly a supply change.
+
+use crate::plant::Effect;
+use anyhow::{bail, Context, Result};
+use pbm::params::Extensions;
+use pbm::sensor::bar_from_adc;
+use pbm::twin::SAMPLE_PERIOD_S;
+use pbm::{AdcCounts, BarG, Meters, Twin, TwinParams};
+use pbm_io::dataset::{read_manifest, trace_path};
+use pbm_io::trace::{read_trace, Samples};
+use rayon::prelude::*;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Every DECIMATE-th sample enters the fit (the twin still runs every sample).
+pub const DECIMATE: usize = 4;
+/// ΔBIC above which a candidate is significant ("very strong" on Kass–Raftery's scale).
+pub const BIC_THRESHOLD: f64 = 10.0;
+/// A named cause must cut the residual sum of squares by at least this factor.
+pub const MIN_RSS_RATIO: f64 = 1.5;
+/// Relative half-width of the base parameters' box (SPEC §5 spread ± 5 %, plus margin).
+pub const BASE_SPREAD: f64 = 0.055;
+/// Half-width of the supply box around the documented setting, bar (SPEC §5: ± 0.03).
+pub const SUPPLY_SPREAD_BAR: f64 = 0.035;
+/// LM iterations of the screening fit of every single mechanism.
+pub const SCREEN_ITER: usize = 6;
+/// Single mechanisms refined to convergence after screening (best screening RSS first).
+pub const REFINED_SINGLES: usize = 4;
+/// Pairs refined to convergence after screening.
+pub const REFINED_PAIRS: usize = 2;
+/// Pairs are formed from this many best single mechanisms.
+pub const PAIR_POOL: usize = 4;
+/// Names of the base parameters, in vector order.
+pub const BASE_NAMES: [&str; 6] = ["cf", "v0", "f0", "k", "friction", "supply"];
+
+/// Releases of one documented configuration.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Group {
+    /// Documented configuration (nominal brake where undocumented).
+    pub config: TwinParams,
+    /// Trace files.
+    pub files: Vec<String>,
+    /// Mean measured pressure, bar g, 100 Hz from t = 0.
+    pub mean: Vec<f64>,
+    /// Noise σ of the mean trace, bar (per-trace estimate / √n).
+    pub sigma_mean: f64,
+    /// Per-trace noise estimates, bar.
+    pub sigma_traces: Vec<f64>,
+    /// Individual traces (for per-trace NMSE).
+    pub traces: Vec<Vec<f64>>,
+}
+
+/// A data set ready for the audit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AuditData {
+    /// Where it came from.
+    pub source: String,
+    /// Configuration groups.
+    pub groups: Vec<Group>,
+}
+
+/// Robust white-noise σ of a 100 Hz trace: MAD of second differences / sqrt(6).
+pub fn noise_sigma(y: &[f64]) -> f64 {
+    let mut d: Vec<f64> = y.windows(3).map(|w| w[2] - 2.0 * w[1] + w[0]).collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    let med = median(&mut d);
+    let mut dev: Vec<f64> = d.iter().map(|v| (v - med).abs()).collect();
+    1.4826 * median(&mut dev) / 6f64.sqrt()
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        0.0
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// The documented configuration in trace metadata (keys matched loosely, see module docs).
+pub fn config_from_meta(meta: &[(String, String)]) -> Result<TwinParams> {
+    let mut p = TwinParams::nominal();
+    for (key, value) in meta {
+        let k = key.to_ascii_lowercase();
+        let number = || -> Result<f64> {
+            let v = value.split_whitespace().next().unwrap_or("");
+            v.parse::<f64>().ok().filter(|x| x.is_finite()).with_context(|| format!("metadata `{key}: {value}`"))
+        };
+        if k.contains("laminar") || k.contains("effect") {
+            continue;
+        }
+        if k.contains("supply") {
+            p.supply = BarG(number()?);
+        } else if k.contains("orifice") {
+            p.orifice = Meters::from_mm(number()?);
+        } else if k.contains("leak") {
+            p.leak = Meters::from_mm(number()?);
+        }
+    }
+    p.validate().map_err(|e| anyhow::anyhow!("documented configuration out of range: {e}"))?;
+    Ok(p)
+}
+
+/// Builds groups from `(file, config, pressure)` traces.
+pub fn data_from_traces(source: &str, traces: Vec<(String, TwinParams, Vec<f64>)>) -> Result<AuditData> {
+    let mut groups: Vec<Group> = Vec::new();
+    for (file, config, p) in traces {
+        if p.len() < 200 {
+            bail!("{file}: only {} samples; the audit needs ≥ 2 s at 100 Hz", p.len());
+        }
+        let sigma = noise_sigma(&p);
+        match groups.iter_mut().find(|g| g.config == config) {
+            Some(g) => {
+                g.files.push(file);
+                g.sigma_traces.push(sigma);
+                g.traces.push(p);
+            }
+            None => groups.push(Group {
+                config,
+                files: vec![file],
+                mean: Vec::new(),
+                sigma_mean: 0.0,
+                sigma_traces: vec![sigma],
+                traces: vec![p],
+            }),
+        }
+    }
+    if groups.is_empty() {
+        bail!("{source}: no traces");
+    }
+    for g in &mut groups {
+        let n = g.traces.iter().map(Vec::len).min().unwrap_or(0);
+        let k = g.traces.len() as f64;
+        g.mean = (0..n).map(|i| g.traces.iter().map(|t| t[i]).sum::<f64>() / k).collect();
+        for t in &mut g.traces {
+            t.truncate(n);
+        }
+        let mut s = g.sigma_traces.clone();
+        g.sigma_mean = (median(&mut s) / k.sqrt()).max(1e-4);
+    }
+    Ok(AuditData { source: source.to_owned(), groups })
+}
+
+/// Reads a SPEC §7 data set for the audit.
+pub fn load_dataset(dir: &Path) -> Result<AuditData> {
+    let rows = read_manifest(dir)?;
+    let mut traces = Vec::new();
+    for row in &rows {
+        let path = trace_path(dir, row);
+        let tr = read_trace(&path)?;
+        tr.check_sample_period(SAMPLE_PERIOD_S, 1e-3)?;
+        if tr.t_s.first().is_some_and(|t| t.abs() > 1e-3) {
+            bail!("{}: a release trace must start at t = 0 (the release command)", path.display());
+        }
+        let p: Vec<f64> = match &tr.samples {
+            Samples::Bar(v) => v.clone(),
+            Samples::Adc(v) => v.iter().map(|&c| bar_from_adc(AdcCounts(c)).0).collect(),
+        };
+        let config = config_from_meta(&tr.metadata).with_context(|| path.display().to_string())?;
+        traces.push((row.file.clone(), config, p));
+    }
+    data_from_traces(&dir.display().to_string(), traces)
+}
+
+/// The brake described by base vector `u` (each in [0, 1]) around the documented `config`.
+pub fn base_params(config: &TwinParams, u: &[f64]) -> TwinParams {
+    let scale = |i: usize| 1.0 + BASE_SPREAD * (2.0 * u.get(i).copied().unwrap_or(0.5) - 1.0);
+    let mut p = *config;
+    p.discharge_coeff *= scale(0);
+    p.dead_volume_m3 *= scale(1);
+    p.preload_n *= scale(2);
+    p.spring_rate_n_per_m *= scale(3);
+    p.coulomb_n *= scale(4);
+    p.static_n *= scale(4);
+    p.supply = BarG(config.supply.0 + SUPPLY_SPREAD_BAR * (2.0 * u.get(5).copied().unwrap_or(0.5) - 1.0));
+    p
+}
+
+/// Magnitude of `effect` at normalised coordinate `u` in [0, 1] (heat transfer in 1/τ, so
+/// that u = 0 is "off" for it as well).
+pub fn effect_value(effect: Effect, u: f64) -> f64 {
+    let (lo, hi) = effect.search_range();
+    if effect == Effect::HeatTransfer {
+        let rate = u.clamp(0.0, 1.0) / lo;
+        if rate <= 1.0 / hi {
+            0.0
+        } else {
+            1.0 / rate
+        }
+    } else {
+        lo + (hi - lo) * u.clamp(0.0, 1.0)
+    }
+}
+
+/// Inverse of [`effect_value`].
+pub fn effect_u(effect: Effect, value: f64) -> f64 {
+    let (lo, hi) = effect.search_range();
+    if effect == Effect::HeatTransfer {
+        if value <= 0.0 {
+            0.0
+        } else {
+            (lo / value).clamp(0.0, 1.0)
+        }
+    } else {
+        ((value - lo) / (hi - lo)).clamp(0.0, 1.0)
+    }
+}
+
+/// d value / d u at `u` (for the uncertainty).
+fn effect_slope(effect: Effect, u: f64) -> f64 {
+    let h = 1e-4;
+    let (a, b) = ((u - h).max(0.0), (u + h).min(1.0));
+    (effect_value(effect, b) - effect_value(effect, a)) / (b - a)
+}
+
+/// Pressure (bar g, as the transducer reads it) and travel (mm) of the core twin, 100 Hz.
+pub fn twin_trace(params: &TwinParams, n: usize) -> Option<(Vec<f64>, Vec<f64>)> {
+    let mut twin = Twin::new(params).ok()?;
+    let mut p = Vec::with_capacity(n);
+    let mut x = Vec::with_capacity(n);
+    if n > 0 {
+        p.push(params.ext.sensor_offset_bar);
+        x.push(0.0);
+    }
+    for _ in 1..n {
+        let s = twin.update(true);
+        p.push(s.pressure.to_bar_g().0);
+        x.push(s.travel().mm());
+    }
+    Some((p, x))
+}
+
+/// True when `effects` make the supply gas temperature and Cf one direction (no heat transfer:
+/// every orifice flow's pressure rate scales by Cf √(T/T0)).
+fn cf_degenerate(effects: &[Effect]) -> bool {
+    effects.contains(&Effect::GasTemperature) && !effects.contains(&Effect::HeatTransfer)
+}
+
+/// Moves a gas-temperature fit along the Cf–T degenerate direction to the nominal Cf (the centre
+/// of its tolerance), keeping the product Cf √(T/T0) and therefore the fit: the data cannot say
+/// which of the two it is, and the centre halves the worst-case magnitude error.
+fn recenter_gas_temperature(effects: &[Effect], x: &mut [f64]) {
+    if !cf_degenerate(effects) {
+        return;
+    }
+    let Some(i) = effects.iter().position(|&e| e == Effect::GasTemperature) else {
+        return;
+    };
+    let g = BASE_NAMES.len() + i;
+    let (Some(&u_cf), Some(&u_t)) = (x.first(), x.get(g)) else {
+        return;
+    };
+    let cf_scale = 1.0 + BASE_SPREAD * (2.0 * u_cf - 1.0);
+    let t = effect_value(Effect::GasTemperature, u_t);
+    let t_centre = pbm::params::TEMPERATURE_K * (cf_scale * (t / pbm::params::TEMPERATURE_K).sqrt()).powi(2);
+    let (lo, hi) = Effect::GasTemperature.search_range();
+    if (lo..=hi).contains(&t_centre) {
+        x[0] = 0.5;
+        x[g] = effect_u(Effect::GasTemperature, t_centre);
+    }
+}
+
+/// True when normalised coordinate `u` switches `effect` off (to 1e-3 of its search range).
+fn is_off(effect: Effect, u: f64) -> bool {
+    let (lo, hi) = effect.search_range();
+    (effect_value(effect, u) - effect.off_value()).abs() <= 1e-3 * (hi - lo)
+}
+
+/// A pair fit with one mechanism switched off *is* a fit of the other mechanism alone: it
+/// replaces that single's fit when better (the single's own search stopped in a worse point)
+/// and is dropped as a pair, so an "a + nothing" model can never be named as a pair.
+fn collapse_degenerate_pairs(fits: &mut Vec<(Vec<Effect>, LmResult, usize)>) {
+    let nb = BASE_NAMES.len();
+    let mut singles_better = Vec::new();
+    fits.retain(|(effects, lm, ev)| {
+        if effects.len() != 2 {
+            return true;
+        }
+        let Some(k) = (0..2).find(|&k| lm.x.get(nb + k).is_some_and(|&u| is_off(effects[k], u))) else {
+            return true;
+        };
+        let keep = 1 - k;
+        let dims = lm.x.len();
+        let idx: Vec<usize> = (0..dims).filter(|&i| i != nb + k).collect();
+        let x = idx.iter().map(|&i| lm.x[i]).collect();
+        let jtj =
+            idx.iter().flat_map(|&a| idx.iter().map(move |&b| (a, b))).map(|(a, b)| lm.jtj[a * dims + b]).collect();
+        let single = LmResult { x, residual: lm.residual.clone(), rss: lm.rss, jtj, evaluations: lm.evaluations };
+        singles_better.push((effects[keep], single, *ev));
+        false
+    });
+    for (effect, lm, ev) in singles_better {
+        if let Some(f) = fits.iter_mut().find(|f| f.0 == [effect]) {
+            if lm.rss < f.1.rss {
+                f.1 = lm;
+                f.2 += ev;
+            }
+        }
+    }
+    fits.sort_by(|a, b| a.1.rss.total_cmp(&b.1.rss));
+}
+
+/// What an audit verdict writes as JSON (brake and metro audits share the format).
+pub(crate) struct VerdictJson<'a> {
+    /// `none`, a mechanism or `a+b`.
+    pub cause: &'a str,
+    /// Named mechanisms: name, unit, magnitude, 1-σ uncertainty.
+    pub causes: Vec<(&'a str, &'a str, f64, f64)>,
+    /// Base and extended NMSE, %.
+    pub nmse_pct: (f64, f64),
+    /// Per-trace mean NMSE (base, extended), % (data sets of several traces).
+    pub nmse_per_trace_pct: Option<(f64, f64)>,
+    /// Estimated noise σ, bar.
+    pub noise_sigma_bar: f64,
+    /// Candidates, best first.
+    pub ranking: Vec<RankingJson<'a>>,
+}
+
+/// One candidate of [`VerdictJson::ranking`].
+pub(crate) struct RankingJson<'a> {
+    pub name: &'a str,
+    pub magnitudes: Vec<f64>,
+    pub delta_bic: f64,
+    pub rss_ratio: f64,
+    pub nmse_pct: f64,
+}
+
+/// A fitted candidate as a verdict ranks it (brake [`CandidateFit`], metro
+/// [`crate::metro::MetroFit`]).
+pub(crate) trait RankedFit {
+    /// Name, magnitudes, ΔBIC against the base, RSS, NMSE %.
+    fn ranked(&self) -> (&str, Vec<f64>, f64, f64, f64);
+}
+
+impl<'a> RankingJson<'a> {
+    /// The ranking rows of `fits`, RSS ratios against `base_rss`.
+    pub(crate) fn rows(fits: &'a [impl RankedFit], base_rss: f64) -> Vec<Self> {
+        fits.iter()
+            .map(|c| {
+                let (name, magnitudes, delta_bic, rss, nmse_pct) = c.ranked();
+                Self { name, magnitudes, delta_bic, rss_ratio: base_rss / rss, nmse_pct }
+            })
+            .collect()
+    }
+}
+
+impl RankedFit for CandidateFit {
+    fn ranked(&self) -> (&str, Vec<f64>, f64, f64, f64) {
+        (&self.name, self.effects.iter().map(|e| e.1).collect(), self.delta_bic, self.rss, self.nmse_pct)
+    }
+}
+
+/// The JSON verdict: `{"cause", "magnitude", "uncertainty", "causes", "nmse_base_pct",
+/// "nmse_extended_pct", "nmse_ratio", ["nmse_per_trace_base_pct", "nmse_per_trace_extended_pct",]
+/// "noise_sigma_bar", "magnitudes", "ranking"}` (see [`AuditOutcome::to_json`]).
+pub(crate) fn verdict_json(v: &VerdictJson) -> String {
+    let num = |x: f64| if x.is_finite() { format!("{x:.6}") } else { "null".to_owned() };
+    let list = |xs: &mut dyn Iterator<Item = f64>| xs.map(num).collect::<Vec<_>>().join(", ");
+    let one_or_list = |pick: fn(&(&str, &str, f64, f64)) -> f64| match v.causes.len() {
+        0 => "null".to_owned(),
+        1 => num(pick(&v.causes[0])),
+        _ => format!("[{}]", list(&mut v.causes.iter().map(pick))),
+    };
+    let causes = v
+        .causes
+        .iter()
+        .map(|(name, unit, m, sd)| {
+            format!(r#"{{"name": "{name}", "magnitude": {}, "uncertainty": {}, "unit": "{unit}"}}"#, num(*m), num(*sd))
+        })
+        .collect::<Vec<_>>()
+        .join(", ");
+    let ranking = v
+        .ranking
+        .iter()
+        .map(|c| {
+            format!(
+                r#"{{"name": "{}", "magnitudes": [{}], "delta_bic": {}, "rss_ratio": {}, "nmse_pct": {}}}"#,
+                c.name,
+                list(&mut c.magnitudes.iter().copied()),
+                num(c.delta_bic),
+                num(c.rss_ratio),
+                num(c.nmse_pct)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join(",\n    ");
+    let per_trace = v.nmse_per_trace_pct.map_or(String::new(), |(b, e)| {
+        format!("  \"nmse_per_trace_base_pct\": {},\n  \"nmse_per_trace_extended_pct\": {},\n", num(b), num(e))
+    });
+    format!(
+        "{{\n  \"cause\": \"{}\",\n  \"magnitude\": {},\n  \"uncertainty\": {},\n  \"causes\": [{}],\n  \
+         \"nmse_base_pct\": {},\n  \"nmse_extended_pct\": {},\n  \"nmse_ratio\": {},\n{}  \
+         \"noise_sigma_bar\": {},\n  \"magnitudes\": [{}],\n  \"ranking\": [\n    {}\n  ]\n}}\n",
+        v.cause,
+        one_or_list(|c| c.2),
+        one_or_list(|c| c.3),
+        causes,
+        num(v.nmse_pct.0),
+        num(v.nmse_pct.1),
+        num(v.nmse_pct.0 / v.nmse_pct.1),
+        per_trace,
+        num(v.noise_sigma_bar),
+        list(&mut v.causes.iter().map(|c| c.2)),
+        ranking
+    )
+}
+
+/// One line of a text ranking: name, ΔBIC, RSS ratio, NMSE and `name = magnitude ± σ unit` of
+/// each mechanism (brake and metro audits).
+pub(crate) fn ranking_line(
+    name: &str,
+    delta_bic: f64,
+    rss_ratio: f64,
+    nmse_pct: f64,
+    effects: &[(&str, &str, f64, f64)],
+) -> String {
+    let effects: Vec<String> = effects.iter().map(|(e, unit, v, u)| format!("{e} = {v:.4} ± {u:.4} {unit}")).collect();
+    format!(
+        "  {name:<36} ΔBIC {delta_bic:>10.1}  RSS ratio {rss_ratio:>8.2}  NMSE {nmse_pct:.3} %  {}\n",
+        effects.join(", ")
+    )
+}
+
+/// Result of [`levenberg_marquardt`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct LmResult {
+    /// Optimum, in the unit box.
+    pub x: Vec<f64>,
+    /// Residual vector at the optimum.
+    pub residual: Vec<f64>,
+    /// Sum of squares at the optimum.
+    pub rss: f64,
+    /// JᵀJ at the optimum (row-major, dims²).
+    pub jtj: Vec<f64>,
+    /// Residual evaluations used.
+    pub evaluations: usize,
+}
+
+/// Bounded Levenberg–Marquardt on the unit box with forward-difference Jacobians (columns in
+/// parallel). `f` returns the residual vector or `None` (an invalid point, treated as +∞).
+pub fn levenberg_marquardt<F>(f: &F, x0: &[f64], max_iter: usize) -> Option<LmResult>
+where
+    F: Fn(&[f64]) -> Option<Vec<f64>> + Sync,
+{
+    let dims = x0.len();
+    let mut x: Vec<f64> = x0.iter().map(|v| v.clamp(0.0, 1.0)).collect();
+    let mut r = f(&x)?;
+    let mut rss: f64 = r.iter().map(|v| v * v).sum();
+    let mut evaluations = 1;
+    let mut lambda = 1e-2;
+    let mut jtj = vec![0.0; dims * dims];
+    let jacobian = |x: &[f64], r: &[f64]| -> Vec<Vec<f64>> {
+        (0..dims)
+            .into_par_iter()
+            .map(|j| {
+                let h = if x[j] + 0.01 <= 1.0 { 0.01 } else { -0.01 };
+                let mut xp = x.to_vec();
+                xp[j] += h;
+                match f(&xp) {
+                    Some(rp) => rp.iter().zip(r).map(|(a, b)| (a - b) / h).collect(),
+                    None => vec![0.0; r.len()],
+                }
+            })
+            .collect()
+    };
+    let mut jac = jacobian(&x, &r);
+    evaluations += dims;
+    for _ in 0..max_iter {
+        let mut g = vec![0.0; dims];
+        for a in 0..dims {
+            g[a] = jac[a].iter().zip(&r).map(|(j, e)| j * e).sum();
+            for b in 0..=a {
+                let v: f64 = jac[a].iter().zip(&jac[b]).map(|(p, q)| p * q).sum();
+                jtj[a * dims + b] = v;
+                jtj[b * dims + a] = v;
+            }
+        }
+        let mut improved = false;
+        while lambda < 1e10 {
+            let mut m = jtj.clone();
+            for a in 0..dims {
+                m[a * dims + a] += lambda * (jtj[a * dims + a] + 1e-9);
+            }
+            let mut neg_g: Vec<f64> = g.iter().map(|v| -v).collect();
+            // Active set: a coordinate on a bound whose step points out of the box is frozen and
+            // the step re-solved for the others (clamping alone would spoil their step).
+            let mut step = solve(&m, &neg_g, dims);
+            for _ in 0..dims {
+                let Some(st) = &step else { break };
+                let blocked: Vec<usize> = (0..dims)
+                    .filter(|&j| (x[j] <= 0.0 && st[j] < 0.0) || (x[j] >= 1.0 && st[j] > 0.0))
+                    .filter(|&j| neg_g[j] != 0.0 || m[j * dims + j] != 1.0)
+                    .collect();
+                if blocked.is_empty() {
+                    break;
+                }
+                for j in blocked {
+                    for k in 0..dims {
+                        m[j * dims + k] = 0.0;
+                        m[k * dims + j] = 0.0;
+                    }
+                    m[j * dims + j] = 1.0;
+                    neg_g[j] = 0.0;
+                }
+                step = solve(&m, &neg_g, dims);
+            }
+            let Some(step) = step else {
+                lambda *= 10.0;
+                continue;
+            };
+            let xn: Vec<f64> = x.iter().zip(&step).map(|(a, s)| (a + s).clamp(0.0, 1.0)).collect();
+            evaluations += 1;
+            if let Some(rn) = f(&xn) {
+                let rss_n: f64 = rn.iter().map(|v| v * v).sum();
+                if rss_n < rss {
+                    let gain = (rss - rss_n) / rss.max(1e-300);
+                    x = xn;
+                    r = rn;
+                    rss = rss_n;
+                    lambda = (lambda / 4.0).max(1e-7);
+                    improved = gain > 1e-6;
+                    break;
+                }
+            }
+            lambda *= 5.0;
+        }
+        if !improved {
+            break;
+        }
+        jac = jacobian(&x, &r);
+        evaluations += dims;
+    }
+    for a in 0..dims {
+        for b in 0..=a {
+            let v: f64 = jac[a].iter().zip(&jac[b]).map(|(p, q)| p * q).sum();
+            jtj[a * dims + b] = v;
+            jtj[b * dims + a] = v;
+        }
+    }
+    Some(LmResult { x, residual: r, rss, jtj, evaluations })
+}
+
+/// Solves the symmetric system `m y = b` (Gaussian elimination with partial pivoting).
+fn solve(m: &[f64], b: &[f64], n: usize) -> Option<Vec<f64>> {
+    let mut a: Vec<Vec<f64>> = (0..n).map(|i| (0..n).map(|j| m[i * n + j]).chain([b[i]]).collect()).collect();
+    for c in 0..n {
+        let piv = (c..n).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        if a[piv][c].abs() < 1e-300 {
+            return None;
+        }
+        a.swap(c, piv);
+        let pivot_row = a[c].clone();
+        for (r, row) in a.iter_mut().enumerate() {
+            if r != c {
+                let f = row[c] / pivot_row[c];
+                for (v, p) in row[c..].iter_mut().zip(&pivot_row[c..]) {
+                    *v -= f * p;
+                }
+            }
+        }
+    }
+    let y: Vec<f64> = (0..n).map(|i| a[i][n] / a[i][i]).collect();
+    y.iter().all(|v| v.is_finite()).then_some(y)
+}
+
+/// Diagonal of the inverse of `m` (n × n).
+pub(crate) fn inverse_diag(m: &[f64], n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|i| {
+            let mut e = vec![0.0; n];
+            e[i] = 1.0;
+            solve(m, &e, n).map_or(f64::INFINITY, |y| y[i])
+        })
+        .collect()
+}
+
+/// One fitted candidate model.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CandidateFit {
+    /// `base`, a mechanism name, or `a+b`.
+    pub name: String,
+    /// Mechanisms and their fitted magnitudes and 1-σ uncertainties.
+    pub effects: Vec<(Effect, f64, f64)>,
+    /// Fitted base parameters (unit box).
+    pub base_u: Vec<f64>,
+    /// Weighted residual sum of squares (decimated samples, units of σ_mean²).
+    pub rss: f64,
+    /// Free parameters.
+    pub k: usize,
+    /// NMSE (SPEC §6) of the model against the mean measured traces, %.
+    pub nmse_pct: f64,
+    /// ΔBIC against the base model (positive: better than base).
+    pub delta_bic: f64,
+    /// Twin evaluations used.
+    pub evaluations: usize,
+}
+
+/// The audit's problem: data plus how to evaluate a candidate.
+struct Problem<'a> {
+    data: &'a AuditData,
+}
+
+impl Problem<'_> {
+    fn params(&self, g: &Group, x: &[f64], effects: &[Effect]) -> TwinParams {
+        let mut p = base_params(&g.config, &x[..BASE_NAMES.len()]);
+        p.ext = Extensions::NONE;
+        for (i, &e) in effects.iter().enumerate() {
+            e.set(&mut p.ext, effect_value(e, x[BASE_NAMES.len() + i]));
+        }
+        p
+    }
+
+    /// Weighted residuals (model − measured)/σ_mean at the decimated samples of all groups.
+    fn residual(&self, x: &[f64], effects: &[Effect]) -> Option<Vec<f64>> {
+        let mut out = Vec::new();
+        for g in &self.data.groups {
+            let p = self.params(g, x, effects);
+            let (model, _) = twin_trace(&p, g.mean.len())?;
+            out.extend((0..g.mean.len()).step_by(DECIMATE).map(|i| (model[i] - g.mean[i]) / g.sigma_mean));
+        }
+        Some(out)
+    }
+
+    fn predictions(&self, x: &[f64], effects: &[Effect]) -> Vec<(Vec<f64>, Vec<f64>)> {
+        self.data
+            .groups
+            .iter()
+            .map(|g| {
+                twin_trace(&self.params(g, x, effects), g.mean.len())
+                    .unwrap_or_else(|| (vec![0.0; g.mean.len()], vec![0.0; g.mean.len()]))
+            })
+            .collect()
+    }
+
+    fn nmse(&self, x: &[f64], effects: &[Effect]) -> f64 {
+        let preds = self.predictions(x, effects);
+        let measured: Vec<f64> = self.data.groups.iter().flat_map(|g| g.mean.iter().copied()).collect();
+        let model: Vec<f64> = preds.into_iter().flat_map(|(p, _)| p).collect();
+        pbm::metrics::nmse_pct(&measured, &model).unwrap_or(f64::NAN)
+    }
+
+    /// Screens every job (candidate, starts) with [`SCREEN_ITER`] iterations from each start,
+    /// then refines the `refine` best from their best point; sorted by RSS.
+    fn screen_and_refine(
+        &self,
+        jobs: &[(Vec<Effect>, Vec<Vec<f64>>)],
+        refine: usize,
+        max_iter: usize,
+    ) -> Vec<(Vec<Effect>, LmResult, usize)> {
+        let mut screened: Vec<(Vec<Effect>, LmResult, usize)> = jobs
+            .par_iter()
+            .filter_map(|(effects, starts)| {
+                self.fit(effects, starts, SCREEN_ITER).map(|(lm, ev)| (effects.clone(), lm, ev))
+            })
+            .collect();
+        screened.sort_by(|a, b| a.1.rss.total_cmp(&b.1.rss));
+        let mut refined: Vec<(Vec<Effect>, LmResult, usize)> = screened
+            .into_par_iter()
+            .enumerate()
+            .map(|(i, (effects, lm, ev))| {
+                if i < refine {
+                    if let Some((r, ev2)) = self.fit(&effects, std::slice::from_ref(&lm.x), max_iter) {
+                        if r.rss <= lm.rss {
+                            return (effects, r, ev + ev2);
+                        }
+                    }
+                }
+                (effects, lm, ev)
+            })
+            .collect();
+        refined.sort_by(|a, b| a.1.rss.total_cmp(&b.1.rss));
+        refined
+    }
+
+    fn fit(&self, effects: &[Effect], starts: &[Vec<f64>], max_iter: usize) -> Option<(LmResult, usize)> {
+        let f = |x: &[f64]| self.residual(x, effects);
+        let results: Vec<LmResult> = starts.par_iter().filter_map(|x0| levenberg_marquardt(&f, x0, max_iter)).collect();
+        let evals = results.iter().map(|r| r.evaluations).sum();
+        results.into_iter().min_by(|a, b| a.rss.total_cmp(&b.rss)).map(|r| (r, evals))
+    }
+}
+
+/// Residual statistics by release phase.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PhaseStats {
+    /// Phase name.
+    pub phase: &'static str,
+    /// Samples in the phase.
+    pub samples: usize,
+    /// RMS residual, bar.
+    pub rms_bar: f64,
+    /// Mean residual (measured − model), bar.
+    pub bias_bar: f64,
+    /// Share of the residual sum of squares, %.
+    pub sse_share_pct: f64,
+}
+
+/// What the base model gets wrong.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Diagnostics {
+    /// Per phase (filling at rest, stroke, end stop / plateau), plus the first 2 s.
+    pub phases: Vec<PhaseStats>,
+    /// RMS residual of the mean traces, bar, and the estimated noise σ of the mean, bar.
+    pub rms_bar: f64,
+    /// Noise σ of the mean trace(s), bar (estimated from the data).
+    pub sigma_mean_bar: f64,
+    /// Median per-trace noise σ, bar.
+    pub sigma_trace_bar: f64,
+    /// Ljung–Box Q over 20 lags (every 5th sample) and its 5 % critical value (χ²₂₀ = 31.41).
+    pub ljung_box_q: f64,
+    /// Residual autocorrelation at lags 1..=20 (every 5th sample).
+    pub acf: Vec<f64>,
+    /// Largest |cross-correlation| of the residual with the twin's pressure rate, and its lag (samples).
+    pub ccf_rate: (f64, i64),
+    /// Correlation of the residual with each phase indicator.
+    pub ccf_phase: Vec<(&'static str, f64)>,
+    /// 1 s window with the largest RMS residual: start time, s, and RMS, bar.
+    pub worst_window: (f64, f64),
+}
+
+const PHASES: [&str; 3] = ["filling at rest", "stroke", "end stop / plateau"];
+
+fn phase_of(x_mm: &[f64], stroke_mm: f64) -> Vec<usize> {
+    let mut moved = false;
+    x_mm.iter()
+        .map(|&x| {
+            if x > 1e-6 {
+                moved = true;
+            }
+            if x >= stroke_mm - 1e-3 {
+                2
+            } else if moved {
+                1
+            } else {
+                0
+            }
+        })
+        .collect()
+}
+
+/// Sample autocorrelation of `r` at lags 1..=`lags`.
+pub fn acf(r: &[f64], lags: usize) -> Vec<f64> {
+    let n = r.len();
+    let m = r.iter().sum::<f64>() / n.max(1) as f64;
+    let c0: f64 = r.iter().map(|v| (v - m) * (v - m)).sum();
+    (1..=lags)
+        .map(|k| {
+            if k >= n || c0 <= 0.0 {
+                return 0.0;
+            }
+            (0..n - k).map(|i| (r[i] - m) * (r[i + k] - m)).sum::<f64>() / c0
+        })
+        .collect()
+}
+
+fn correlation(a: &[f64], b: &[f64]) -> f64 {
+    let n = a.len().min(b.len());
+    if n < 3 {
+        return 0.0;
+    }
+    let ma = a[..n].iter().sum::<f64>() / n as f64;
+    let mb = b[..n].iter().sum::<f64>() / n as f64;
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for i in 0..n {
+        let (x, y) = (a[i] - ma, b[i] - mb);
+        sab += x * y;
+        saa += x * x;
+        sbb += y * y;
+    }
+    if saa <= 0.0 || sbb <= 0.0 {
+        0.0
+    } else {
+        sab / (saa * sbb).sqrt()
+    }
+}
+
+fn diagnostics(data: &AuditData, preds: &[(Vec<f64>, Vec<f64>)]) -> Diagnostics {
+    let mut res = Vec::new();
+    let mut phase = Vec::new();
+    let mut rate = Vec::new();
+    let mut t = Vec::new();
+    for (g, (p, x)) in data.groups.iter().zip(preds) {
+        let ph = phase_of(x, g.config.stroke.mm());
+        for i in 0..g.mean.len() {
+            res.push(g.mean[i] - p[i]);
+            phase.push(ph[i]);
+            rate.push(if i > 0 { (p[i] - p[i - 1]) / SAMPLE_PERIOD_S } else { 0.0 });
+            t.push(i as f64 * SAMPLE_PERIOD_S);
+        }
+    }
+    let sse: f64 = res.iter().map(|v| v * v).sum();
+    let mut phases: Vec<PhaseStats> = PHASES
+        .iter()
+        .enumerate()
+        .map(|(k, &name)| {
+            let v: Vec<f64> = res.iter().zip(&phase).filter(|(_, &p)| p == k).map(|(r, _)| *r).collect();
+            stats(name, &v, sse)
+        })
+        .collect();
+    let start: Vec<f64> = res.iter().zip(&t).filter(|(_, &t)| t < 2.0).map(|(r, _)| *r).collect();
+    phases.push(stats("first 2 s (inside the above)", &start, sse));
+    let dec: Vec<f64> = res.iter().step_by(5).copied().collect();
+    let acf20 = acf(&dec, 20);
+    let n = dec.len() as f64;
+    let q = n * (n + 2.0) * acf20.iter().enumerate().map(|(k, r)| r * r / (n - (k + 1) as f64)).sum::<f64>();
+    let mut best = (0.0f64, 0i64);
+    for lag in -50i64..=50 {
+        let (a, b): (&[f64], &[f64]) = if lag >= 0 {
+            (&res[lag as usize..], &rate[..rate.len() - lag as usize])
+        } else {
+            (&res[..res.len() - (-lag) as usize], &rate[(-lag) as usize..])
+        };
+        let c = correlation(a, b);
+        if c.abs() > best.0.abs() {
+            best = (c, lag);
+        }
+    }
+    let ccf_phase = PHASES
+        .iter()
+        .enumerate()
+        .map(|(k, &name)| {
+            let ind: Vec<f64> = phase.iter().map(|&p| f64::from(u8::from(p == k))).collect();
+            (name, correlation(&res, &ind))
+        })
+        .collect();
+    let mut worst = (0.0, 0.0);
+    for (w, chunk) in res.chunks(100).enumerate() {
+        let rms = (chunk.iter().map(|v| v * v).sum::<f64>() / chunk.len() as f64).sqrt();
+        if rms > worst.1 {
+            worst = (t.get(w * 100).copied().unwrap_or(0.0), rms);
+        }
+    }
+    let mut sig: Vec<f64> = data.groups.iter().flat_map(|g| g.sigma_traces.iter().copied()).collect();
+    Diagnostics {
+        phases,
+        rms_bar: (sse / res.len().max(1) as f64).sqrt(),
+        sigma_mean_bar: data.groups.iter().map(|g| g.sigma_mean).sum::<f64>() / data.groups.len() as f64,
+        sigma_trace_bar: median(&mut sig),
+        ljung_box_q: q,
+        acf: acf20,
+        ccf_rate: best,
+        ccf_phase,
+        worst_window: worst,
+    }
+}
+
+fn stats(name: &'static str, v: &[f64], sse: f64) -> PhaseStats {
+    let s: f64 = v.iter().map(|x| x * x).sum();
+    let n = v.len();
+    PhaseStats {
+        phase: name,
+        samples: n,
+        rms_bar: if n > 0 { (s / n as f64).sqrt() } else { 0.0 },
+        bias_bar: if n > 0 { v.iter().sum::<f64>() / n as f64 } else { 0.0 },
+        sse_share_pct: if sse > 0.0 { 100.0 * s / sse } else { 0.0 },
+    }
+}
+
+/// Options of the audit computation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AuditOptions {
+    /// LM iterations per start.
+    pub max_iter: usize,
+    /// Mechanisms tried (default: all).
+    pub pairs: bool,
+}
+
+impl Default for AuditOptions {
+    fn default() -> Self {
+        Self { max_iter: 30, pairs: true }
+    }
+}
+
+/// The audit's verdict and evidence.
+#[derive(Debug, Clone)]
+pub struct AuditOutcome {
+    /// Where the data came from (directory or description).
+    pub source: String,
+    /// Named cause: a mechanism, `a+b` (names in [`Effect::ALL`] order), or `none`.
+    pub cause: String,
+    /// Mechanisms of the cause with magnitude and 1-σ uncertainty (empty for `none`).
+    pub cause_effects: Vec<(Effect, f64, f64)>,
+    /// Base model fit.
+    pub base: CandidateFit,
+    /// The chosen model (the base for `none`).
+    pub chosen: CandidateFit,
+    /// All candidates, best ΔBIC first.
+    pub ranking: Vec<CandidateFit>,
+    /// Residual diagnostics of the base fit.
+    pub diagnostics: Diagnostics,
+    /// Residual diagnostics of the chosen model.
+    pub chosen_diagnostics: Diagnostics,
+    /// Mean measured, base, chosen pressure and travel per group (for plots).
+    pub curves: Vec<CurveSet>,
+    /// Effective sample count used by the BIC.
+    pub n_eff: f64,
+    /// Decimated samples in the fit.
+    pub n: usize,
+    /// Mean per-trace NMSE of base and chosen models, %.
+    pub nmse_per_trace: (f64, f64),
+}
+
+/// Curves of one configuration group.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CurveSet {
+    /// Measured mean, bar g.
+    pub measured: Vec<f64>,
+    /// Base twin, bar g.
+    pub base: Vec<f64>,
+    /// Extended (chosen) twin, bar g.
+    pub extended: Vec<f64>,
+    /// Base twin travel, mm.
+    pub base_travel: Vec<f64>,
+}
+
+/// Runs the audit on loaded data.
+pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
+    let prob = Problem { data };
+    let nb = BASE_NAMES.len();
+    // Base: a few starts in the tolerance box.
+    let base_starts: Vec<Vec<f64>> =
+        vec![vec![0.5; nb], vec![0.3, 0.7, 0.5, 0.5, 0.5, 0.5], vec![0.7, 0.3, 0.5, 0.5, 0.5, 0.5]];
+    let (base_lm, base_evals) = prob.fit(&[], &base_starts, opts.max_iter).context("the base twin cannot run")?;
+    let n = base_lm.residual.len();
+    let mk = |name: String, effects: &[Effect], lm: &LmResult, evals: usize| CandidateFit {
+        name,
+        effects: effects.iter().enumerate().map(|(i, &e)| (e, effect_value(e, lm.x[nb + i]), f64::NAN)).collect(),
+        base_u: lm.x[..nb].to_vec(),
+        rss: lm.rss,
+        k: lm.x.len(),
+        nmse_pct: prob.nmse(&lm.x, effects),
+        delta_bic: 0.0,
+        evaluations: evals,
+    };
+    // Singles, then pairs of the best singles: every candidate gets a short screening fit from
+    // each start (one start is the base optimum with the mechanism off, so no candidate ends
+    // worse than the base it contains), then the most promising are refined to convergence.
+    let off_u = |e: Effect| effect_u(e, e.off_value());
+    let single_jobs: Vec<(Vec<Effect>, Vec<Vec<f64>>)> = Effect::ALL
+        .iter()
+        .map(|&e| {
+            let starts = e
+                .starts()
+                .iter()
+                .map(|&m| effect_u(e, m))
+                .chain([off_u(e)])
+                .map(|u| base_lm.x.iter().copied().chain([u]).collect())
+                .collect();
+            (vec![e], starts)
+        })
+        .collect();
+    let mut fits = prob.screen_and_refine(&single_jobs, REFINED_SINGLES, opts.max_iter);
+    if opts.pairs && fits.len() >= 2 {
+        let top: Vec<(Effect, f64, Vec<f64>)> =
+            fits.iter().map(|(e, lm, _)| (e[0], lm.x[nb], lm.x[..nb].to_vec())).collect();
+        let mut pair_jobs = Vec::new();
+        for i in 0..top.len() {
+            for j in i + 1..top.len() {
+                // Every pair among the best singles, and the best single with every other
+                // mechanism (forward selection: a mechanism that a base parameter mimics alone,
+                // like a supply temperature, can still be needed next to another one).
+                if !(j < PAIR_POOL || i == 0) {
+                    continue;
+                }
+                // Canonical order (that of `Effect::ALL`), so `a+b` names are stable.
+                let (a, b) = if top[i].0 <= top[j].0 { (&top[i], &top[j]) } else { (&top[j], &top[i]) };
+                let (oa, ob) = (off_u(a.0), off_u(b.0));
+                // From each single's optimum with the other mechanism barely on, and halfway.
+                let starts = vec![
+                    a.2.iter().copied().chain([a.1, 0.9 * ob + 0.1 * b.1]).collect::<Vec<f64>>(),
+                    b.2.iter().copied().chain([0.9 * oa + 0.1 * a.1, b.1]).collect(),
+                    a.2.iter().copied().chain([0.5 * (a.1 + oa), 0.5 * (b.1 + ob)]).collect(),
+                ];
+                pair_jobs.push((vec![a.0, b.0], starts));
+            }
+        }
+        let pairs = prob.screen_and_refine(&pair_jobs, REFINED_PAIRS, opts.max_iter);
+        // Is the second mechanism needed? Each single of the best pair is refitted from the
+        // pair's optimum with the other mechanism removed: a single whose own search stopped
+        // in a worse point must not make a pair look better than it is.
+        // Only the best pair can be named, and only if it beats the best single by the RSS rule.
+        let best_single_rss = fits.first().map_or(f64::INFINITY, |f| f.1.rss);
+        let drop_jobs: Vec<(Effect, Vec<f64>)> = pairs
+            .iter()
+            .take(1)
+            .filter(|(_, lm, _)| lm.rss * MIN_RSS_RATIO <= best_single_rss)
+            .flat_map(|(effects, lm, _)| {
+                (0..2).map(move |k| {
+                    let x = lm.x.iter().enumerate().filter(|&(i, _)| i != nb + 1 - k).map(|(_, &v)| v).collect();
+                    (effects[k], x)
+                })
+            })
+            .collect();
+        let refits: Vec<(Effect, LmResult, usize)> = drop_jobs
+            .par_iter()
+            .filter_map(|(e, x0)| prob.fit(&[*e], std::slice::from_ref(x0), opts.max_iter).map(|(lm, ev)| (*e, lm, ev)))
+            .collect();
+        for (e, lm, ev) in refits {
+            if let Some(f) = fits.iter_mut().find(|f| f.0 == [e]) {
+                f.2 += ev;
+                if lm.rss < f.1.rss {
+                    f.1 = lm;
+                }
+            }
+        }
+        fits.extend(pairs);
+    }
+
+    collapse_degenerate_pairs(&mut fits);
+    for (effects, lm, _) in &mut fits {
+        recenter_gas_temperature(effects, &mut lm.x);
+    }
+    // Effective sample count from the best model's residual correlation.
+    let best_all = fits.iter().map(|f| &f.1).chain([&base_lm]).min_by(|a, b| a.rss.total_cmp(&b.rss)).cloned();
+    let best_all = best_all.context("no model could be fitted")?;
+    let rho = acf(&best_all.residual, 1).first().copied().unwrap_or(0.0).clamp(0.0, 0.995);
+    // Floor: one independent observation per second of trace (the release dynamics are ~1 s
+    // and slower), so a model that fits badly everywhere cannot hide a large improvement.
+    let seconds: f64 = data.groups.iter().map(|g| g.mean.len() as f64 * SAMPLE_PERIOD_S).sum();
+    let n_eff = (n as f64 * (1.0 - rho) / (1.0 + rho)).max(seconds.min(n as f64)).max(5.0);
+    let inflation = n as f64 / n_eff;
+    let dbic = |rss0: f64, rss1: f64, dk: usize| n_eff * (rss0 / rss1.max(1e-300)).ln() - dk as f64 * n_eff.ln();
+
+    let base = {
+        let mut b = mk("base".to_owned(), &[], &base_lm, base_evals);
+        b.delta_bic = 0.0;
+        b
+    };
+    let mut ranking: Vec<CandidateFit> = fits
+        .iter()
+        .map(|(effects, lm, evals)| {
+            let name = effects.iter().map(|e| e.name()).collect::<Vec<_>>().join("+");
+            let mut c = mk(name, effects, lm, *evals);
+            c.delta_bic = dbic(base_lm.rss, lm.rss, effects.len());
+            // 1-σ from s² (JᵀJ)⁻¹, s² = RSS/(n − k) inflated for correlation.
+            let dims = lm.x.len();
+            let s2 = lm.rss / (n.saturating_sub(dims).max(1)) as f64 * inflation;
+            let diag = inverse_diag(&lm.jtj, dims);
+            for (i, eff) in c.effects.iter_mut().enumerate() {
+                let g = nb + i;
+                let slope = effect_slope(eff.0, lm.x[g]).abs();
+                eff.2 = if cf_degenerate(effects) && eff.0 == Effect::GasTemperature {
+                    // Cf and T are one direction: the statistical part with Cf held, plus the
+                    // Cf tolerance (uniform ± BASE_SPREAD, T ∝ Cf⁻²) as a prior uncertainty.
+                    let stat = (s2 / lm.jtj[g * dims + g].max(1e-300)).sqrt() * slope;
+                    let prior = eff.1 * 2.0 * BASE_SPREAD / 3f64.sqrt();
+                    stat.hypot(prior)
+                } else {
+                    (diag[g] * s2).max(0.0).sqrt() * slope
+                };
+            }
+            c
+        })
+        .collect();
+    ranking.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
+
+    // Decision.
+    let best_single = ranking.iter().find(|c| c.effects.len() == 1).cloned();
+    let mut chosen = base.clone();
+    if let Some(s) = best_single {
+        if s.delta_bic > BIC_THRESHOLD && base.rss / s.rss >= MIN_RSS_RATIO {
+            chosen = s.clone();
+            let best_pair =
+                ranking.iter().filter(|c| c.effects.len() == 2).max_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
+            // Any pair may replace the best single, but only by beating it on both rules.
+            if let Some(p) = best_pair {
+                if dbic(s.rss, p.rss, 1) > BIC_THRESHOLD && s.rss / p.rss >= MIN_RSS_RATIO {
+                    chosen = p.clone();
+                }
+            }
+        }
+    }
+    let cause = if chosen.effects.is_empty() { "none".to_owned() } else { chosen.name.clone() };
+    let chosen_x: Vec<f64> =
+        chosen.base_u.iter().copied().chain(chosen.effects.iter().map(|&(e, v, _)| effect_u(e, v))).collect();
+    let chosen_effects: Vec<Effect> = chosen.effects.iter().map(|e| e.0).collect();
+    let base_preds = prob.predictions(&base_lm.x, &[]);
+    let chosen_preds = prob.predictions(&chosen_x, &chosen_effects);
+    let diagnostics = diagnostics(data, &base_preds);
+    let chosen_diagnostics = diagnostics_of(data, &chosen_preds);
+    let curves = data
+        .groups
+        .iter()
+        .zip(base_preds.iter().zip(&chosen_preds))
+        .map(|(g, (b, c))| CurveSet {
+            measured: g.mean.clone(),
+            base: b.0.clone(),
+            extended: c.0.clone(),
+            base_travel: b.1.clone(),
+        })
+        .collect::<Vec<_>>();
+    let per_trace = |preds: &[(Vec<f64>, Vec<f64>)]| {
+        let v: Vec<f64> = data
+            .groups
+            .iter()
+            .zip(preds)
+            .flat_map(|(g, (p, _))| g.traces.iter().filter_map(|t| pbm::metrics::nmse_pct(t, p)))
+            .collect();
+        v.iter().sum::<f64>() / v.len().max(1) as f64
+    };
+    Ok(AuditOutcome {
+        source: data.source.clone(),
+        cause,
+        cause_effects: chosen.effects.clone(),
+        nmse_per_trace: (per_trace(&base_preds), per_trace(&chosen_preds)),
+        base,
+        chosen,
+        ranking,
+        diagnostics,
+        chosen_diagnostics,
+        curves,
+        n_eff,
+        n,
+    })
+}
+
+fn diagnostics_of(data: &AuditData, preds: &[(Vec<f64>, Vec<f64>)]) -> Diagnostics {
+    diagnostics(data, preds)
+}
+
+impl AuditOutcome {
+    /// Magnitude of a single cause (NaN for `none`).
+    pub fn magnitude(&self) -> f64 {
+        self.cause_effects.first().map_or(f64::NAN, |e| e.1)
+    }
+
+    /// The `--json` document:
+    /// `{"cause", "magnitude", "uncertainty", "magnitudes", "causes", "nmse_base_pct",
+    /// "nmse_extended_pct", "nmse_ratio", "nmse_per_trace_base_pct", "nmse_per_trace_extended_pct",
+    /// "noise_sigma_bar", "ranking"}`.
+    ///
+    /// - one mechanism: `cause` is its name, `magnitude` a number in its unit;
+    /// - two: `cause` is `a+b` (names in [`Effect::ALL`] order, i.e. the issue's), `magnitude` and
+    ///   `uncertainty` are arrays in the same order;
+    /// - `none`: `magnitude` and `uncertainty` are `null`.
+    ///
+    /// `magnitudes` is always an array (empty for `none`) and `causes` lists
+    /// `{"name", "magnitude", "uncertainty", "unit"}` objects, so a reader need not branch.
+    /// The NMSEs are SPEC §6 against the mean measured trace of each configuration group.
+    pub fn to_json(&self) -> String {
+        verdict_json(&VerdictJson {
+            cause: &self.cause,
+            causes: self.cause_effects.iter().map(|(e, v, sd)| (e.name(), e.unit(), *v, *sd)).collect(),
+            nmse_pct: (self.base.nmse_pct, self.chosen.nmse_pct),
+            nmse_per_trace_pct: Some(self.nmse_per_trace),
+            noise_sigma_bar: self.diagnostics.sigma_trace_bar,
+            ranking: RankingJson::rows(&self.ranking, self.base.rss),
+        })
+    }
+
+    /// Plain-text summary.
+    pub fn summary(&self) -> String {
+        let d = &self.diagnostics;
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "noise σ per trace {:.4} bar (estimated), of the mean {:.4} bar",
+            d.sigma_trace_bar, d.sigma_mean_bar
+        );
+        let _ = writeln!(s, "base fit: NMSE {:.3} %, RMS residual {:.4} bar", self.base.nmse_pct, d.rms_bar);
+        let _ = writeln!(s, "  fitted base (box 0..1, 0.5 = documented/nominal): {}", fmt_base(&self.base.base_u));
+        for p in &d.phases {
+            let _ = writeln!(
+                s,
+                "  {:<28} {:>5} samples  RMS {:.4} bar  bias {:+.4} bar  {:5.1} % of SSE",
+                p.phase, p.samples, p.rms_bar, p.bias_bar, p.sse_share_pct
+            );
+        }
+        let _ = writeln!(
+            s,
+            "  Ljung–Box Q(20) = {:.1} (white below 31.4); worst 1 s window at {:.0} s (RMS {:.4} bar)",
+            d.ljung_box_q, d.worst_window.0, d.worst_window.1
+        );
+        let _ =
+            writeln!(s, "  residual × pressure rate: max |ccf| {:.2} at lag {} samples", d.ccf_rate.0, d.ccf_rate.1);
+        let _ = writeln!(
+            s,
+            "  residual × phase: {}",
+            d.ccf_phase.iter().map(|(n, c)| format!("{n} {c:+.2}")).collect::<Vec<_>>().join(", ")
+        );
+        let runs = self.base.evaluations + self.ranking.iter().map(|c| c.evaluations).sum::<usize>();
+        let _ = writeln!(s, "candidates (n = {}, n_eff = {:.0}; {runs} twin runs in all):", self.n, self.n_eff);
+        for c in &self.ranking {
+            let effects: Vec<_> = c.effects.iter().map(|(e, v, u)| (e.name(), e.unit(), *v, *u)).collect();
+            s.push_str(&ranking_line(&c.name, c.delta_bic, self.base.rss / c.rss, c.nmse_pct, &effects));
+        }
+        let _ = writeln!(
+            s,
+            "cause: {}{}",
+            self.cause,
+            self.cause_effects
+                .iter()
+                .map(|(e, v, u)| format!("  {e} = {v:.4} ± {u:.4} {}", e.unit()))
+                .collect::<String>()
+        );
+        let _ = writeln!(
+            s,
+            "NMSE base {:.3} % → extended {:.3} % (ratio {:.1}); per trace {:.3} % → {:.3} %",
+            self.base.nmse_pct,
+            self.chosen.nmse_pct,
+            self.base.nmse_pct / self.chosen.nmse_pct,
+            self.nmse_per_trace.0,
+            self.nmse_per_trace.1
+        );
+        s
+    }
+}
+
+fn fmt_base(u: &[f64]) -> String {
+    BASE_NAMES.iter().zip(u).map(|(n, v)| format!("{n} {v:.2}")).collect::<Vec<_>>().join(", ")
+}
+
+/// Options of `host-sim audit`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct AuditArgs {
+    /// Data set directory (manifest.csv + traces) of releases of one locomotive.
+    pub path: PathBuf,
+    /// Write the verdict as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write residual and comparison plots (SVG) into this directory.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+    /// Write a self-contained HTML report (inline SVG) to this file; without a value to
+    /// `audit_report.html` in the `--plot` directory, or in the current directory.
+    #[arg(long, num_args = 0..=1, value_name = "FILE")]
+    pub report: Option<Option<PathBuf>>,
+    /// Do not try pairs of mechanisms.
+    #[arg(long)]
+    pub no_pairs: bool,
+}
+
+/// The audit of a SPEC §7 data set directory with the default options: what the demo and other
+/// tools call (`write_outputs` then writes the files; `audit_plot::svgs` / `audit_plot::html_section`
+/// give the plots and the report body as strings for embedding).
+pub fn audit_dir(path: &Path) -> Result<AuditOutcome> {
+    let data = load_dataset(path)?;
+    audit(&data, AuditOptions::default())
+}
+
+/// Default file name of the HTML report.
+pub const REPORT_FILE: &str = "audit_report.html";

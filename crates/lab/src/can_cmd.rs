@@ -1,0 +1,682 @@
+//! `host-sim can …`: decode CAN traffic as the cab display shows it, send a log onto a bus,
+//! and write a demonstration log.
+//!
+//! `can decode FILE` (a candump log, `-` for stdin, or `--can-iface NAME` to listen on a
+//! SocketCAN interface) prints one line per fault report: time, class label, confidence %,
+//! supply pressure with a bar gauge, leak, time since release, completed. Frames with a wrong
+//! CRC, a repeated, skipped or out-of-order counter, an unknown identifier, a wrong length,
+//! an invalid signal value, or log lines that are not frames, are flagged (`!!` lines) and
+//! skipped. It never stops on bad input; it exits 0 and ends with a summary of what it flagged.
+//! A silence of the heartbeat (status frame) longer than [`pbm::can::HEARTBEAT_TIMEOUT_US`] is
+//! shown as a `--` line and restarts counter tracking, so the logs of several releases or
+//! locomotives written one after another (`host-sim replay DATASET --can-log`) decode cleanly.
+
+use crate::simulate::{simulate, Engine};
+use anyhow::{bail, Context, Result};
+use pbm::can::layout::{reason, sensor_health, ESTIMATOR_STATE_LABELS};
+use pbm::can::{CanFrame, Decoder, FrameError, Report};
+use pbm::monitor::Monitor;
+use pbm::report::{FaultReport, NoDiagnosis, StatusReport, Verdict};
+use pbm::sensor::{adc_from_bar, SensorFault};
+use pbm::{AdcCounts, BarG, FaultClass, TwinParams};
+use pbm_io::can_bus::{FrameSink, FrameSource};
+use pbm_io::can_log::{format_frame, read_log, CanRecorder, CandumpWriter, LogError, DEFAULT_IFACE};
+use rand_core::SeedableRng;
+use std::collections::BTreeMap;
+use std::io::{BufRead, Write};
+use std::path::PathBuf;
+
+/// Options of `host-sim can`.
+#[derive(Debug, clap::Args)]
+pub struct CanArgs {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: CanCommand,
+}
+
+/// Subcommands of `host-sim can`.
+#[derive(Debug, clap::Subcommand)]
+pub enum CanCommand {
+    /// Decode a candump log (or stdin, or a CAN interface) and print the reports as the cab
+    /// display shows them; flag and skip bad frames; summary at the end.
+    Decode(DecodeArgs),
+    /// Send the frames of a candump log onto a CAN interface (needs `--features socketcan`).
+    Send(SendArgs),
+    /// Write a demonstration candump log: simulated releases through the monitor and the CAN
+    /// reporter, with scripted verdicts covering every diagnosis and reason code.
+    DemoLog(DemoLogArgs),
+}
+
+/// Output format of `can decode`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum DecodeFormat {
+    /// Cab display lines.
+    Text,
+    /// One CSV row per frame with physical values (used by scripts/can-cantools-check.sh).
+    Csv,
+}
+
+/// Options of `host-sim can decode`.
+#[derive(Debug, clap::Args)]
+pub struct DecodeArgs {
+    /// candump log file, `-` for standard input.
+    #[arg(required_unless_present = "can_iface")]
+    pub file: Option<PathBuf>,
+    /// Listen on this SocketCAN interface instead (Linux, `--features socketcan`).
+    #[arg(long)]
+    pub can_iface: Option<String>,
+    /// With --can-iface: stop after this many seconds without a frame (default: never).
+    #[arg(long)]
+    pub idle_timeout: Option<f64>,
+    /// Also print status/heartbeat frames.
+    #[arg(long)]
+    pub status: bool,
+    /// Output format.
+    #[arg(long, value_enum, default_value_t = DecodeFormat::Text)]
+    pub format: DecodeFormat,
+}
+
+/// Options of `host-sim can send`.
+#[derive(Debug, clap::Args)]
+pub struct SendArgs {
+    /// candump log file, `-` for standard input.
+    pub file: PathBuf,
+    /// SocketCAN interface to send on, e.g. vcan0.
+    #[arg(long)]
+    pub can_iface: String,
+    /// Keep the log's timing (sleep between frames) instead of sending as fast as possible.
+    #[arg(long)]
+    pub realtime: bool,
+}
+
+/// Options of `host-sim can demo-log`.
+#[derive(Debug, clap::Args)]
+pub struct DemoLogArgs {
+    /// Output file (default: standard output).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Interface name written in the log.
+    #[arg(long, default_value = DEFAULT_IFACE)]
+    pub iface: String,
+    /// Instead of simulated releases, sweep the codec: every diagnosis, reason, sensor and
+    /// estimator code with field values at and beyond the edges of their ranges.
+    #[arg(long)]
+    pub sweep: bool,
+}
+
+/// `host-sim can`.
+pub fn run(a: &CanArgs) -> Result<()> {
+    match &a.command {
+        CanCommand::Decode(d) => match run_decode(d) {
+            Err(e) if is_broken_pipe(&e) => Ok(()),
+            other => other,
+        },
+        CanCommand::Send(s) => run_send(s),
+        CanCommand::DemoLog(d) => run_demo_log(d),
+    }
+}
+
+// ---- cab display --------------------------------------------------------------------------
+
+/// What `can decode` counted.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct DecodeSummary {
+    /// Frames (and unparseable lines) seen.
+    pub frames: u64,
+    /// Fault reports shown.
+    pub fault_reports: u64,
+    /// Status frames decoded.
+    pub status_reports: u64,
+    /// Flagged and skipped, by reason label ([`FrameError::label`] or `bad_log_line`).
+    pub flagged: BTreeMap<&'static str, u64>,
+    /// Times the heartbeat was silent for longer than [`pbm::can::HEARTBEAT_TIMEOUT_US`] (monitor
+    /// lost: restart, bus-off, gap between recordings); counter tracking restarted each time.
+    pub heartbeat_losses: u64,
+}
+
+impl DecodeSummary {
+    /// All flagged items.
+    pub fn flagged_total(&self) -> u64 {
+        self.flagged.values().sum()
+    }
+}
+
+impl std::fmt::Display for DecodeSummary {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "summary: {} frames, {} fault reports, {} status frames, {} flagged and skipped",
+            self.frames,
+            self.fault_reports,
+            self.status_reports,
+            self.flagged_total()
+        )?;
+        if !self.flagged.is_empty() {
+            let parts: Vec<String> = self.flagged.iter().map(|(k, v)| format!("{k} {v}")).collect();
+            write!(f, " ({})", parts.join(", "))?;
+        }
+        if self.heartbeat_losses > 0 {
+            write!(f, "; heartbeat lost {} times", self.heartbeat_losses)?;
+        }
+        Ok(())
+    }
+}
+
+/// Label of a verdict as shown on the display (the DBC value labels).
+pub fn verdict_label(v: &Verdict) -> String {
+    match v {
+        Verdict::Class { class, .. } => class.label().to_owned(),
+        Verdict::CannotDiagnose(why) => format!("cannot_diagnose ({})", reason_label(*why)),
+    }
+}
+
+fn reason_label(why: NoDiagnosis) -> &'static str {
+    let code = pbm::can::codec::reason_code(why);
+    reason::LABELS.get(usize::from(code)).copied().unwrap_or("?")
+}
+
+fn sensor_label(s: Option<SensorFault>) -> &'static str {
+    let code = s.map_or(sensor_health::OK, SensorFault::code);
+    sensor_health::LABELS.get(usize::from(code)).copied().unwrap_or("?")
+}
+
+/// Calibrated confidence in percent.
+pub fn confidence_pct(v: &Verdict) -> Option<f64> {
+    match v {
+        Verdict::Class { confidence_pct, .. } => Some(f64::from(*confidence_pct)),
+        Verdict::CannotDiagnose(_) => None,
+    }
+}
+
+/// A 10-cell gauge of the supply pressure over 0..10 bar g.
+pub fn supply_gauge(bar: f64) -> String {
+    let cells = (bar.clamp(0.0, 10.0)).round() as usize;
+    format!("[{}{}]", "#".repeat(cells), ".".repeat(10 - cells))
+}
+
+fn time_text(time_us: u64) -> String {
+    format!("{:>6}.{:03}", time_us / 1_000_000, (time_us % 1_000_000) / 1000)
+}
+
+/// One cab display line for a fault report.
+pub fn fault_line(time_us: u64, r: &FaultReport) -> String {
+    let supply = f64::from(r.supply_mbar) / 1000.0;
+    let conf = confidence_pct(&r.verdict).map_or_else(|| " --".to_owned(), |p| format!("{p:>3.0}"));
+    // 0 means "not estimated yet" (FaultReport::supply_mbar).
+    let supply_txt = if r.supply_mbar == 0 { "  --  ".to_owned() } else { format!("{supply:>6.3}") };
+    format!(
+        "{} s  {:<38} conf {conf} %  supply {supply_txt} bar {}  leak {:>5.3} mm  release +{:>5.1} s  {}",
+        time_text(time_us),
+        verdict_label(&r.verdict),
+        supply_gauge(supply),
+        f64::from(r.leak_um) / 1000.0,
+        f64::from(r.time_since_release_cs) / 100.0,
+        if r.release_completed { "completed" } else { "in progress" }
+    )
+}
+
+/// One display line for a status frame.
+pub fn status_line(time_us: u64, s: &StatusReport) -> String {
+    format!(
+        "{} s  status: sensor {}  estimator {}  pressure {:.3} bar  firmware {}.{}",
+        time_text(time_us),
+        sensor_label(s.sensor_fault),
+        ESTIMATOR_STATE_LABELS.get(s.estimator as usize).copied().unwrap_or("?"),
+        f64::from(s.pressure_mbar) / 1000.0,
+        s.version.0,
+        s.version.1
+    )
+}
+
+/// Header of the CSV output of `can decode --format csv`.
+pub const CSV_HEADER: &str = "time_us,id,data,message,counter,Diagnosis,Confidence,NoDiagnosisReason,\
+ReleaseCompleted,TimeSinceRelease,SupplyPressure,LeakDiameter,SensorHealth,EstimatorState,ChamberPressure,\
+FirmwareMajor,FirmwareMinor,flag";
+
+fn csv_row(time_us: u64, frame: &CanFrame, counter: Option<u8>, report: Option<&Report>, flag: &str) -> String {
+    let (id, data) = match format_frame(frame).split_once('#') {
+        Some((i, d)) => (i.to_owned(), d.to_owned()),
+        None => (String::new(), String::new()),
+    };
+    let counter = counter.map_or_else(String::new, |c| c.to_string());
+    let cols = match report {
+        Some(Report::Fault(r)) => {
+            let (diag, reason_txt) = match r.verdict {
+                Verdict::Class { class, .. } => (class.label().to_owned(), "none".to_owned()),
+                Verdict::CannotDiagnose(why) => ("cannot_diagnose".to_owned(), reason_label(why).to_owned()),
+            };
+            format!(
+                "BPM_FaultReport,{counter},{diag},{},{reason_txt},{},{},{},{},,,,,",
+                confidence_pct(&r.verdict).unwrap_or(0.0),
+                if r.release_completed { "completed" } else { "in_progress" },
+                f64::from(r.time_since_release_cs) / 100.0,
+                f64::from(r.supply_mbar) / 1000.0,
+                f64::from(r.leak_um) / 1000.0,
+            )
+        }
+        Some(Report::Status(s)) => format!(
+            "BPM_Status,{counter},,,,,,,,{},{},{},{},{}",
+            sensor_label(s.sensor_fault),
+            ESTIMATOR_STATE_LABELS.get(s.estimator as usize).copied().unwrap_or("?"),
+            f64::from(s.pressure_mbar) / 1000.0,
+            s.version.0,
+            s.version.1
+        ),
+        None => format!(",{counter},,,,,,,,,,,,"),
+    };
+    format!("{time_us},{id},{data},{cols},{flag}")
+}
+
+/// The cab display: a [`Decoder`] plus the printing and counting of `can decode`.
+pub struct CabDisplay<W: Write> {
+    decoder: Decoder,
+    out: W,
+    show_status: bool,
+    format: DecodeFormat,
+    summary: DecodeSummary,
+}
+
+impl<W: Write> CabDisplay<W> {
+    /// A display printing to `out`.
+    pub fn new(out: W, show_status: bool, format: DecodeFormat) -> Self {
+        Self { decoder: Decoder::new(), out, show_status, format, summary: DecodeSummary::default() }
+    }
+
+    /// Writes the CSV header (CSV format only).
+    pub fn header(&mut self) -> std::io::Result<()> {
+        if self.format == DecodeFormat::Csv {
+            writeln!(self.out, "{CSV_HEADER}")?;
+        }
+        Ok(())
+    }
+
+    /// Feeds one received frame.
+    pub fn frame(&mut self, time_us: u64, frame: &CanFrame) -> std::io::Result<Result<Report, FrameError>> {
+        self.summary.frames += 1;
+        let counter = pbm::can::codec::check_frame(frame).ok().map(|(_, _, c)| c);
+        let reception = self.decoder.receive(time_us, frame);
+        if let Some(silence_us) = reception.heartbeat_lost_us {
+            self.summary.heartbeat_losses += 1;
+            if self.format == DecodeFormat::Text {
+                writeln!(
+                    self.out,
+                    "{} s  -- no heartbeat for {:.1} s: monitor lost (restart or gap); counters resynchronised",
+                    time_text(time_us),
+                    silence_us as f64 / 1e6
+                )?;
+            }
+        }
+        let result = reception.result;
+        match (&result, self.format) {
+            (Ok(Report::Fault(r)), DecodeFormat::Text) => {
+                self.summary.fault_reports += 1;
+                writeln!(self.out, "{}", fault_line(time_us, r))?;
+            }
+            (Ok(Report::Status(s)), DecodeFormat::Text) => {
+                self.summary.status_reports += 1;
+                if self.show_status {
+                    writeln!(self.out, "{}", status_line(time_us, s))?;
+                }
+            }
+            (Ok(report), DecodeFormat::Csv) => {
+                match report {
+                    Report::Fault(_) => self.summary.fault_reports += 1,
+                    Report::Status(_) => self.summary.status_reports += 1,
+                }
+                writeln!(self.out, "{}", csv_row(time_us, frame, counter, Some(report), ""))?;
+            }
+            (Err(e), DecodeFormat::Text) => {
+                *self.summary.flagged.entry(e.label()).or_default() += 1;
+                writeln!(
+                    self.out,
+                    "{} s  !! {}: {e} [{}] skipped",
+                    time_text(time_us),
+                    e.label(),
+                    format_frame(frame)
+                )?;
+            }
+            (Err(e), DecodeFormat::Csv) => {
+                *self.summary.flagged.entry(e.label()).or_default() += 1;
+                writeln!(self.out, "{}", csv_row(time_us, frame, counter, None, e.label()))?;
+            }
+        }
+        Ok(result)
+    }
+
+    /// Feeds a log line that is not a frame.
+    pub fn bad_line(&mut self, e: &LogError) -> std::io::Result<()> {
+        self.summary.frames += 1;
+        *self.summary.flagged.entry("bad_log_line").or_default() += 1;
+        match self.format {
+            DecodeFormat::Text => writeln!(self.out, "           !! bad_log_line: {e} skipped"),
+            DecodeFormat::Csv => writeln!(self.out, ",,,,,,,,,,,,,,,,,bad_log_line"),
+        }
+    }
+
+    /// What was counted so far.
+    pub fn summary(&self) -> &DecodeSummary {
+        &self.summary
+    }
+
+    /// Ends the display and returns its counts.
+    pub fn finish(mut self) -> std::io::Result<DecodeSummary> {
+        self.out.flush()?;
+        Ok(self.summary)
+    }
+}
+
+/// Decodes a candump log into a display; returns the summary.
+pub fn decode_log<R: BufRead, W: Write>(reader: R, display: &mut CabDisplay<W>) -> std::io::Result<()> {
+    display.header()?;
+    for item in read_log(reader) {
+        match item {
+            Ok(rec) => {
+                // Flagged frames are counted and printed by the display; only I/O errors stop.
+                let _report = display.frame(rec.time_us, &rec.frame)?;
+            }
+            Err(e) => display.bad_line(&e)?,
+        }
+    }
+    Ok(())
+}
+
+/// Decodes everything a frame source delivers into a display.
+pub fn decode_source<W: Write>(source: &mut impl FrameSource, display: &mut CabDisplay<W>) -> std::io::Result<()> {
+    display.header()?;
+    while let Some((t, f)) = source.recv()? {
+        let _report = display.frame(t, &f)?;
+    }
+    Ok(())
+}
+
+fn run_decode(a: &DecodeArgs) -> Result<()> {
+    let stdout = std::io::stdout();
+    let mut display = CabDisplay::new(std::io::BufWriter::new(stdout.lock()), a.status, a.format);
+    if let Some(iface) = &a.can_iface {
+        if a.file.is_some() {
+            bail!("give either a FILE or --can-iface, not both");
+        }
+        listen(iface, a.idle_timeout, &mut display)?;
+    } else {
+        match a.file.as_deref() {
+            Some(p) if p.as_os_str() == "-" => decode_log(std::io::stdin().lock(), &mut display)?,
+            Some(p) => {
+                let f = std::fs::File::open(p).with_context(|| format!("cannot open {}", p.display()))?;
+                decode_log(std::io::BufReader::new(f), &mut display)?;
+            }
+            None => bail!("give a candump log FILE (or - for stdin) or --can-iface NAME"),
+        }
+    }
+    let summary = display.finish()?;
+    eprintln!("{summary}");
+    Ok(())
+}
+
+/// `true` for the error a closed pipe gives (`host-sim can decode log | head`): not a failure.
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| c.downcast_ref::<std::io::Error>().is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe))
+}
+
+#[cfg(all(feature = "socketcan", target_os = "linux"))]
+fn listen<W: Write>(iface: &str, idle_timeout: Option<f64>, display: &mut CabDisplay<W>) -> Result<()> {
+    let mut bus = pbm_io::can_bus::socket::SocketBus::open(iface)?;
+    if let Some(t) = idle_timeout {
+        if !(t.is_finite() && t > 0.0) {
+            bail!("--idle-timeout must be a positive number of seconds");
+        }
+        bus.idle_timeout = Some(std::time::Duration::from_secs_f64(t));
+    }
+    decode_source(&mut bus, display)?;
+    Ok(())
+}
+
+#[cfg(not(all(feature = "socketcan", target_os = "linux")))]
+fn listen<W: Write>(iface: &str, _idle_timeout: Option<f64>, _display: &mut CabDisplay<W>) -> Result<()> {
+    bail!("--can-iface {iface}: this host-sim was built without SocketCAN (build with `--features socketcan` on Linux)")
+}
+
+fn run_send(a: &SendArgs) -> Result<()> {
+    let reader: Box<dyn BufRead> = if a.file.as_os_str() == "-" {
+        Box::new(std::io::BufReader::new(std::io::stdin()))
+    } else {
+        let f = std::fs::File::open(&a.file).with_context(|| format!("cannot open {}", a.file.display()))?;
+        Box::new(std::io::BufReader::new(f))
+    };
+    let mut sink = open_sink(&a.can_iface)?;
+    let (sent, bad) = send_log(reader, &mut *sink, a.realtime)?;
+    eprintln!("sent {sent} frames on {}; {bad} log lines skipped", a.can_iface);
+    Ok(())
+}
+
+/// Sends every frame of a candump log to a sink (optionally keeping the log's timing); bad
+/// lines are reported on stderr and skipped. Returns (frames sent, lines skipped).
+pub fn send_log(reader: impl BufRead, sink: &mut dyn FrameSink, realtime: bool) -> Result<(u64, u64)> {
+    let (mut sent, mut bad) = (0u64, 0u64);
+    let start = std::time::Instant::now();
+    let mut first_us = None;
+    for item in read_log(reader) {
+        match item {
+            Ok(rec) => {
+                if realtime {
+                    let t0 = *first_us.get_or_insert(rec.time_us);
+                    let due = std::time::Duration::from_micros(rec.time_us.saturating_sub(t0));
+                    if let Some(wait) = due.checked_sub(start.elapsed()) {
+                        std::thread::sleep(wait);
+                    }
+                }
+                sink.send(rec.time_us, &rec.frame)?;
+                sent += 1;
+            }
+            Err(e) => {
+                eprintln!("skipped: {e}");
+                bad += 1;
+            }
+        }
+    }
+    Ok((sent, bad))
+}
+
+/// Opens a SocketCAN interface as a frame sink.
+#[cfg(all(feature = "socketcan", target_os = "linux"))]
+pub fn open_sink(iface: &str) -> Result<Box<dyn FrameSink>> {
+    Ok(Box::new(pbm_io::can_bus::socket::SocketBus::open(iface)?))
+}
+
+/// Opens a SocketCAN interface as a frame sink (not available in this build).
+#[cfg(not(all(feature = "socketcan", target_os = "linux")))]
+pub fn open_sink(iface: &str) -> Result<Box<dyn FrameSink>> {
+    bail!("--can-iface {iface}: this host-sim was built without SocketCAN (build with `--features socketcan` on Linux)")
+}
+
+// ---- demonstration log --------------------------------------------------------------------
+
+/// One scripted release of the demonstration log.
+struct DemoRelease {
+    params: TwinParams,
+    /// Seconds the valve stays open.
+    open_s: f64,
+    /// Verdict from this time on (s since the release command), if any.
+    verdict: Option<(f64, Verdict)>,
+    /// ADC override windows (from s, to s, counts): sensor faults.
+    sensor_faults: &'static [(f64, f64, u16)],
+}
+
+fn demo_releases() -> Vec<DemoRelease> {
+    let nominal = TwinParams::nominal();
+    let class = |c: FaultClass, confidence_pct: u8| Some((12.0, Verdict::Class { class: c, confidence_pct }));
+    vec![
+        DemoRelease { params: nominal, open_s: 40.0, verdict: class(FaultClass::Normal, 98), sensor_faults: &[] },
+        DemoRelease {
+            params: nominal.with_leak_mm(0.8),
+            open_s: 40.0,
+            verdict: class(FaultClass::AirLeak, 80),
+            sensor_faults: &[],
+        },
+        DemoRelease {
+            params: nominal.with_orifice_mm(0.6),
+            open_s: 60.0,
+            verdict: class(FaultClass::OrificeBlock, 75),
+            sensor_faults: &[],
+        },
+        DemoRelease {
+            params: nominal.with_orifice_mm(0.7).with_leak_mm(0.9),
+            open_s: 60.0,
+            verdict: class(FaultClass::LeakAndBlock, 50),
+            sensor_faults: &[],
+        },
+        DemoRelease {
+            params: nominal.with_supply_bar_g(5.0),
+            open_s: 40.0,
+            verdict: class(FaultClass::LowSupply, 99),
+            sensor_faults: &[],
+        },
+        DemoRelease {
+            params: nominal.with_orifice_mm(3.0),
+            open_s: 20.0,
+            verdict: Some((4.0, Verdict::Class { class: FaultClass::OrificeMissing, confidence_pct: 1 })),
+            sensor_faults: &[],
+        },
+        DemoRelease {
+            params: nominal,
+            open_s: 30.0,
+            verdict: None,
+            sensor_faults: &[(10.0, 12.0, 0), (20.0, 21.0, 4095)],
+        },
+        DemoRelease {
+            params: nominal,
+            open_s: 5.0,
+            verdict: Some((4.5, Verdict::CannotDiagnose(NoDiagnosis::TooShort))),
+            sensor_faults: &[],
+        },
+        DemoRelease {
+            params: nominal.with_leak_mm(2.0),
+            open_s: 40.0,
+            verdict: Some((20.0, Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar))),
+            sensor_faults: &[],
+        },
+    ]
+}
+
+/// Seconds the valve stays closed between demonstration releases.
+const DEMO_IDLE_S: f64 = 3.0;
+
+/// Writes the demonstration log to a sink: each release simulated with the fixed-point twin,
+/// read through the sensor map, fed to one [`Monitor`] and one [`CanRecorder`] (status and
+/// estimates are the monitor's; verdicts are scripted, the classifier is not in this loop).
+/// During a sensor fault the verdict is `cannot_diagnose (sensor_…)`. Returns frames sent.
+pub fn write_demo_log<S: FrameSink>(sink: S) -> Result<(u64, S)> {
+    let mut monitor = Monitor::new(&TwinParams::nominal()).map_err(|e| anyhow::anyhow!("nominal twin: {e}"))?;
+    let mut rec = CanRecorder::new(sink);
+    let mut sample: u64 = 0;
+    let mut frames = 0u64;
+    // Transducer noise (SPEC §5, σ = 0.01 bar) from a fixed seed: a noise-free reading would
+    // be a frozen sensor on the status frame.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2023);
+    let mut noisy_adc = move |p: f64| adc_from_bar(BarG(p + 0.01 * crate::random::normal_pair(&mut rng).0));
+    for r in demo_releases() {
+        let trace = simulate(Engine::Fixed, &r.params, r.open_s).map_err(|e| anyhow::anyhow!("demo twin: {e}"))?;
+        let mut verdict: Option<Verdict> = None;
+        let idle = crate::simulate::sample_count(DEMO_IDLE_S);
+        for i in 0..trace.len() + idle {
+            let open = i < trace.len();
+            let t_rel = i as f64 * pbm::twin::SAMPLE_PERIOD_S;
+            let mut adc = noisy_adc(trace.get(i).map_or(0.0, |s| s.p_bar));
+            if let Some(&(_, _, counts)) = r.sensor_faults.iter().find(|(a, b, _)| (*a..*b).contains(&t_rel)) {
+                adc = AdcCounts(counts);
+            }
+            let step = monitor.update(adc, open);
+            if let Err(fault) = step.measured {
+                verdict = Some(Verdict::CannotDiagnose(NoDiagnosis::SensorFault(fault)));
+            } else if let Some((from, v)) = r.verdict {
+                if t_rel + 1e-9 >= from {
+                    verdict = Some(v);
+                }
+            }
+            // The display holds the last report after the release; nothing new is reported
+            // while the valve is closed.
+            let current = if open { verdict } else { None };
+            frames += rec.on_sample(sample * 10_000, &monitor, current, open)? as u64;
+            sample += 1;
+        }
+    }
+    Ok((frames, rec.into_sink()))
+}
+
+/// Writes the codec sweep: fault reports for every verdict (each class at confidences 0, 1,
+/// 50, 99, 100 % and every cannot-diagnose reason) with time, supply and leak at 0, one step,
+/// mid-range, the top of the range and beyond (saturating); status frames for every sensor and
+/// estimator code with pressures 0, 1, 7700, 65535 mbar. Counters run on per message, frames
+/// are 10 ms apart. Returns frames sent.
+pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
+    use pbm::can::{encode_fault, encode_status};
+    use pbm::report::EstimatorState;
+    let mut verdicts: Vec<Verdict> = Vec::new();
+    for class in FaultClass::ALL {
+        for confidence_pct in [0, 1, 50, 99, 100] {
+            verdicts.push(Verdict::Class { class, confidence_pct });
+        }
+    }
+    let reasons = SensorFault::ALL.map(NoDiagnosis::SensorFault);
+    for why in reasons.into_iter().chain([NoDiagnosis::TooShort, NoDiagnosis::Unfamiliar]) {
+        verdicts.push(Verdict::CannotDiagnose(why));
+    }
+    let times: [u16; 6] = [0, 10, 6_000, 40_950, 40_951, u16::MAX];
+    let supplies: [u16; 6] = [0, 5, 7_700, 20_475, 20_478, u16::MAX];
+    let leaks: [u16; 6] = [0, 1, 850, 4_095, 4_096, u16::MAX];
+    let (mut n, mut fault_counter, mut status_counter) = (0u64, 0u8, 0u8);
+    for (i, verdict) in verdicts.iter().enumerate() {
+        for k in 0..times.len() {
+            let r = FaultReport {
+                verdict: *verdict,
+                time_since_release_cs: times[k],
+                supply_mbar: supplies[(k + i) % supplies.len()],
+                leak_um: leaks[(k + 2 * i) % leaks.len()],
+                release_completed: (i + k) % 2 == 1,
+            };
+            sink.send(n * 10_000, &encode_fault(&r, fault_counter))?;
+            fault_counter = (fault_counter + 1) & 0xF;
+            n += 1;
+        }
+    }
+    let states = [EstimatorState::Idle, EstimatorState::Converging, EstimatorState::Settled, EstimatorState::Frozen];
+    let healths = core::iter::once(None).chain(SensorFault::ALL.map(Some));
+    for (i, sensor_fault) in healths.enumerate() {
+        for (j, estimator) in states.into_iter().enumerate() {
+            for (k, pressure_mbar) in [0u16, 1, 7_700, u16::MAX].into_iter().enumerate() {
+                let version = [(0, 0), (0, 1), (255, 255), (12, 34)][(i + j + k) % 4];
+                let s = StatusReport { sensor_fault, estimator, pressure_mbar, version };
+                sink.send(n * 10_000, &encode_status(&s, status_counter))?;
+                status_counter = (status_counter + 1) & 0xF;
+                n += 1;
+            }
+        }
+    }
+    Ok((n, sink))
+}
+
+fn run_demo_log(a: &DemoLogArgs) -> Result<()> {
+    let write = |w| -> Result<(u64, CandumpWriter<_>)> {
+        if a.sweep {
+            write_codec_sweep(w)
+        } else {
+            write_demo_log(w)
+        }
+    };
+    let frames = match &a.out {
+        Some(path) => {
+            let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+            let out: Box<dyn Write> = Box::new(std::io::BufWriter::new(f));
+            let (n, w) = write(CandumpWriter::new(out, &a.iface))?;
+            w.finish().with_context(|| format!("cannot write {}", path.display()))?;
+            n
+        }
+        None => {
+            let out: Box<dyn Write> = Box::new(std::io::BufWriter::new(std::io::stdout().lock()));
+            let (n, w) = write(CandumpWriter::new(out, &a.iface))?;
+            w.finish()?;
+            n
+        }
+    };
+    eprintln!("wrote {frames} frames");
+    Ok(())
+}

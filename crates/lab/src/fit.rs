@@ -1,0 +1,272 @@
+//! The paper's batch fit (SPEC §6, classifier 3): per trace, least squares of the measured
+//! pressure against the twin over the whole release, with the twin simulated inside the loop.
+//!
+//! - **Twin**: the fixed-point core [`pbm::Twin`], rebuilt from each candidate [`TwinParams`]
+//!   (one 60 s simulation ≈ 1 ms), started at the release command like the monitor's twin.
+//! - **Optimiser**: Nelder–Mead from `argmin` on a scaled parameter vector.
+//! - **Cost**: sum of squared pressure errors (bar²) over the valid samples (sensor-fault codes are
+//!   left out); candidates the twin refuses (out of range) cost [`INVALID_COST`].
+//! - **Goodness of fit**: [`pbm::metrics::nmse_pct`] of the best candidate.
+//!
+//! Two parameter sets can be fitted ([`FitParams`]): the paper's θ = (K, B, sigma0, sigma1), in
+//! log scale around the nominal brake (the reproduction row), and the physical fault
+//! parameters (inlet orifice, leak, supply) that the online estimator tracks, for comparing
+//! the RLS with a batch fit on the same quantities.
+
+use anyhow::{bail, Context, Result};
+use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
+use argmin::solver::neldermead::NelderMead;
+use pbm::sensor::{bar_from_adc, pressure_from_adc};
+use pbm::{AdcCounts, BarG, Meters, Twin, TwinParams};
+use std::path::{Path, PathBuf};
+
+/// Cost of a candidate the twin refuses.
+pub const INVALID_COST: f64 = 1e9;
+
+/// Which parameters the fit frees (the others stay at the base brake's values).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum FitParams {
+    /// The paper's θ = (K, B, sigma0, sigma1), log-scaled around the base values.
+    Paper,
+    /// The fault parameters: inlet orifice (mm), leak (mm), supply (bar g).
+    Physical,
+}
+
+impl FitParams {
+    /// Column names of the fitted parameters.
+    pub fn names(self) -> [&'static str; 4] {
+        match self {
+            Self::Paper => ["k_n_per_m", "b_n_s_per_m", "sigma0_n_per_m", "sigma1_n_s_per_m"],
+            Self::Physical => ["orifice_mm", "leak_mm", "supply_bar_g", "-"],
+        }
+    }
+
+    fn dims(self) -> usize {
+        match self {
+            Self::Paper => 4,
+            Self::Physical => 3,
+        }
+    }
+
+    /// The brake described by the optimiser's vector `x`.
+    fn apply(self, base: &TwinParams, x: &[f64]) -> TwinParams {
+        let mut p = *base;
+        let get = |i: usize| x.get(i).copied().unwrap_or(0.0);
+        match self {
+            Self::Paper => {
+                p.spring_rate_n_per_m = base.spring_rate_n_per_m * get(0).exp();
+                p.viscous_n_s_per_m = base.viscous_n_s_per_m * get(1).exp();
+                p.sigma0_n_per_m = base.sigma0_n_per_m * get(2).exp();
+                p.sigma1_n_s_per_m = base.sigma1_n_s_per_m * get(3).exp();
+            }
+            Self::Physical => {
+                // |·| folds the simplex back into the physical half-space (a leak of −0.2 mm is
+                // the same brake as one of 0.2 mm); the orifice keeps a tiny floor.
+                p.orifice = Meters::from_mm(get(0).abs().max(0.01));
+                p.leak = Meters::from_mm(get(1).abs());
+                p.supply = BarG(get(2));
+            }
+        }
+        p
+    }
+
+    /// The fitted values as reported (physical units).
+    fn values(self, p: &TwinParams) -> [f64; 4] {
+        match self {
+            Self::Paper => [p.spring_rate_n_per_m, p.viscous_n_s_per_m, p.sigma0_n_per_m, p.sigma1_n_s_per_m],
+            Self::Physical => [p.orifice.mm(), p.leak.mm(), p.supply.0, f64::NAN],
+        }
+    }
+
+    /// Initial simplex around the base brake.
+    fn simplex(self, base: &TwinParams) -> Vec<Vec<f64>> {
+        let (x0, steps): (Vec<f64>, Vec<f64>) = match self {
+            Self::Paper => (vec![0.0; 4], vec![0.4; 4]),
+            Self::Physical => (vec![base.orifice.mm(), base.leak.mm().max(0.3), base.supply.0], vec![-0.4, 0.4, -1.5]),
+        };
+        let mut s = vec![x0.clone()];
+        for (i, step) in steps.iter().enumerate() {
+            let mut v = x0.clone();
+            v[i] += step;
+            s.push(v);
+        }
+        s
+    }
+}
+
+/// Simulates the fixed-point twin for `samples` samples from the release command (sample `i` is
+/// the state after `i` updates, as in the monitor); gauge bar.
+pub fn simulate_twin(params: &TwinParams, samples: usize) -> Result<Vec<f64>, pbm::ParamError> {
+    let mut twin = Twin::new(params)?;
+    let mut out = Vec::with_capacity(samples);
+    let mut p = twin.state().p_q24;
+    for _ in 0..samples {
+        out.push(pbm::PressureQ24(p).to_bar_g().0);
+        p = twin.update(true).pressure.0;
+    }
+    Ok(out)
+}
+
+struct Problem<'a> {
+    measured: &'a [Option<f64>],
+    evaluations: &'a std::sync::atomic::AtomicU64,
+    base: TwinParams,
+    which: FitParams,
+}
+
+impl Problem<'_> {
+    fn sse(&self, params: &TwinParams) -> f64 {
+        let Ok(model) = simulate_twin(params, self.measured.len()) else {
+            return INVALID_COST;
+        };
+        self.measured.iter().zip(&model).filter_map(|(m, q)| m.map(|m| (m - q) * (m - q))).sum()
+    }
+}
+
+impl CostFunction for Problem<'_> {
+    type Param = Vec<f64>;
+    type Output = f64;
+    fn cost(&self, x: &Self::Param) -> Result<Self::Output, ArgminError> {
+        self.evaluations.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        Ok(self.sse(&self.which.apply(&self.base, x)))
+    }
+}
+
+/// Result of one batch fit.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitResult {
+    /// Which parameters were fitted.
+    pub which: FitParams,
+    /// The fitted brake.
+    pub params: TwinParams,
+    /// The fitted values in the order of [`FitParams::names`] (NaN where unused).
+    pub values: [f64; 4],
+    /// Sum of squared errors, bar².
+    pub sse: f64,
+    /// NMSE of SPEC §6 of the fitted twin, %.
+    pub nmse_pct: Option<f64>,
+    /// Cost evaluations (twin simulations).
+    pub evaluations: u64,
+}
+
+/// Measured gauge pressures of an ADC trace (`None` for sensor-fault codes).
+pub fn pressures_from_adc(adc: &[u16]) -> Vec<Option<f64>> {
+    adc.iter().map(|&c| pressure_from_adc(AdcCounts(c)).ok().map(|_| bar_from_adc(AdcCounts(c)).0)).collect()
+}
+
+/// Fits `which` to a measured release (gauge bar per 100 Hz sample, `None` = no reading),
+/// starting from `base`, with at most `max_iters` Nelder–Mead iterations.
+pub fn fit_trace(measured: &[Option<f64>], base: &TwinParams, which: FitParams, max_iters: u64) -> Result<FitResult> {
+    if measured.iter().all(Option::is_none) {
+        bail!("the trace has no valid pressure sample");
+    }
+    base.validate().map_err(|e| anyhow::anyhow!("invalid base parameters: {e}"))?;
+    let evaluations = std::sync::atomic::AtomicU64::new(0);
+    let problem = Problem { measured, evaluations: &evaluations, base: *base, which };
+    let solver = NelderMead::new(which.simplex(base)).with_sd_tolerance(1e-9)?;
+    let res = Executor::new(problem, solver).configure(|s| s.max_iters(max_iters)).run()?;
+    let state = res.state();
+    let best = state.get_best_param().cloned().unwrap_or_else(|| vec![0.0; which.dims()]);
+    let params = which.apply(base, &best);
+    let model = simulate_twin(&params, measured.len()).map_err(|e| anyhow::anyhow!("fitted brake invalid: {e}"))?;
+    let (m, q): (Vec<f64>, Vec<f64>) = measured.iter().zip(&model).filter_map(|(m, q)| m.map(|m| (m, *q))).unzip();
+    let evaluations = evaluations.load(std::sync::atomic::Ordering::Relaxed);
+    Ok(FitResult {
+        which,
+        values: which.values(&params),
+        params,
+        sse: state.get_best_cost(),
+        nmse_pct: pbm::metrics::nmse_pct(&m, &q),
+        evaluations,
+    })
+}
+
+/// Measured pressures of a trace file (either `p_bar` or `adc`).
+pub fn read_measured(path: &Path) -> Result<Vec<Option<f64>>> {
+    let trace = pbm_io::trace::read_trace(path)?;
+    Ok(match &trace.samples {
+        pbm_io::trace::Samples::Adc(adc) => pressures_from_adc(adc),
+        pbm_io::trace::Samples::Bar(p) => p.iter().map(|&v| v.is_finite().then_some(v)).collect(),
+    })
+}
+
+/// Options of `host-sim fit`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct FitArgs {
+    /// A trace file, or a data set directory (with manifest.csv).
+    pub input: PathBuf,
+    /// Parameters to fit.
+    #[arg(long, value_enum, default_value_t = FitParams::Paper)]
+    pub params: FitParams,
+    /// Nelder–Mead iteration limit per trace.
+    #[arg(long, default_value_t = 300)]
+    pub max_iters: u64,
+    /// With a data set: fit only traces of this split (train/test).
+    #[arg(long)]
+    pub split: Option<String>,
+    /// With a data set: at most this many traces per class (0 = all).
+    #[arg(long, default_value_t = 0)]
+    pub per_class: usize,
+}
+
+/// `host-sim fit`: prints one row per trace and a summary of the NMSE.
+pub fn run(a: &FitArgs) -> Result<()> {
+    use rayon::prelude::*;
+    let base = TwinParams::nominal();
+    let jobs: Vec<(String, String, PathBuf)> = if a.input.is_dir() {
+        let rows = pbm_io::dataset::read_manifest(&a.input)?;
+        let mut per_class = std::collections::HashMap::<String, usize>::new();
+        rows.iter()
+            .filter(|r| a.split.as_deref().is_none_or(|s| r.split == s))
+            .filter(|r| {
+                let n = per_class.entry(r.label.clone()).or_default();
+                *n += 1;
+                a.per_class == 0 || *n <= a.per_class
+            })
+            .map(|r| (r.file.clone(), r.label.clone(), pbm_io::dataset::trace_path(&a.input, r)))
+            .collect()
+    } else {
+        vec![(a.input.display().to_string(), "-".into(), a.input.clone())]
+    };
+    let results: Vec<Result<(String, String, FitResult)>> = jobs
+        .par_iter()
+        .map(|(file, label, path)| {
+            let measured = read_measured(path).with_context(|| format!("cannot read {}", path.display()))?;
+            let fit = fit_trace(&measured, &base, a.params, a.max_iters).with_context(|| format!("fitting {file}"))?;
+            Ok((file.clone(), label.clone(), fit))
+        })
+        .collect();
+    let names = a.params.names();
+    println!("file,label,{},{},{},{},nmse_pct,evaluations", names[0], names[1], names[2], names[3]);
+    let mut nmse = Vec::new();
+    let mut failures = 0;
+    for r in results {
+        match r {
+            Ok((file, label, f)) => {
+                let v = f.values;
+                let n = f.nmse_pct.unwrap_or(f64::NAN);
+                nmse.push(n);
+                println!("{file},{label},{:.6},{:.6},{:.6},{:.6},{n:.3},{}", v[0], v[1], v[2], v[3], f.evaluations);
+            }
+            Err(e) => {
+                failures += 1;
+                eprintln!("error: {e:#}");
+            }
+        }
+    }
+    if !nmse.is_empty() {
+        nmse.sort_by(f64::total_cmp);
+        let mean = nmse.iter().sum::<f64>() / nmse.len() as f64;
+        eprintln!(
+            "fitted {} trace(s) ({:?}): NMSE mean {mean:.3} %, median {:.3} %, max {:.3} %",
+            nmse.len(),
+            a.params,
+            nmse[nmse.len() / 2],
+            nmse[nmse.len() - 1]
+        );
+    }
+    if failures > 0 {
+        bail!("{failures} trace(s) could not be fitted");
+    }
+    Ok(())
+}

@@ -1,0 +1,116 @@
+//! Hidden-effect tests of the model-discrepancy audit (issue 9).
+//!
+//! A case draws a mechanism and a magnitude from its seed (uniformly over all ten mechanisms,
+//! magnitude uniform in [`Effect::plausible`]), a locomotive with the SPEC §5 spread, and
+//! [`RELEASES_PER_CASE`] noisy releases from the f64 plant (σ = 0.01 bar, 12-bit ADC); the audit
+//! must name the mechanism, estimate its magnitude within 20 % and cut the NMSE at least 5×.
+//! A null case (clean plant) must give `none`.
+//!
+//! The default seeds are fixed so CI is reproducible; `AUDIT_TEST_SEED=N` moves the window
+//! (seeds N, N+1, …) to check others. The larger sweep is `#[ignore]`d:
+//! `cargo test -p host-sim --test audit -- --ignored` (≈ 3 min on 2 cores), and the full one is
+//! `host-sim audit-sweep --cases 200 --pairs 40 --null-cases 20` (bench/audit_sweep.md).
+
+use pbm_lab::audit::{audit, audit_dir, AuditOptions};
+use pbm_lab::audit_plot::write_outputs;
+use pbm_lab::audit_sweep::{check_case, draw_case, draw_case_with, synth_data, RELEASES_PER_CASE};
+use pbm_lab::generate::{generate, GenerateArgs, SplitMode};
+use pbm_lab::plant::Effect;
+
+fn first_seed(default: u64) -> u64 {
+    std::env::var("AUDIT_TEST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(default)
+}
+
+fn run_seeds(seeds: impl Iterator<Item = u64>, count: usize) {
+    let mut misses = Vec::new();
+    for seed in seeds {
+        let case = draw_case_with(seed, &Effect::ALL, count, None).expect("case");
+        let r = check_case(&case).expect("audit runs");
+        let line = r.line(seed);
+        eprintln!("{line}");
+        if !r.hit() {
+            misses.push(line);
+        }
+    }
+    assert!(misses.is_empty(), "missed hidden effects:\n{}", misses.join("\n"));
+}
+
+#[test]
+fn hidden_effect_is_named_with_magnitude_and_gain() {
+    let s = first_seed(1);
+    run_seeds(s..s + 3, 1);
+}
+
+#[test]
+fn clean_plant_gives_none() {
+    let seed = first_seed(1) + pbm_lab::audit_sweep::NULL_SEED_OFFSET;
+    let data = synth_data(seed, &[], RELEASES_PER_CASE).expect("data");
+    let out = audit(&data, AuditOptions::default()).expect("audit runs");
+    eprint!("{}", out.summary());
+    assert_eq!(out.cause, "none", "clean data must not be blamed on a mechanism");
+    assert!(out.cause_effects.is_empty());
+    assert!(out.to_json().contains("\"cause\": \"none\""));
+}
+
+/// The documented workflow: `host-sim generate` one locomotive's releases with a hidden effect,
+/// then `host-sim audit` the directory; JSON, plots and report are written.
+#[test]
+fn generate_then_audit_directory() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let data = dir.path().join("data");
+    let mut g = GenerateArgs::with_defaults(data.clone());
+    g.locomotives = 1;
+    g.split = SplitMode::Shared;
+    g.classes = vec!["normal".to_owned()];
+    g.per_class = 12;
+    g.test_per_class = 0;
+    g.seed = 5;
+    g.effects = vec![("valve_lag".to_owned(), 0.45)];
+    generate(&g, false).expect("generate");
+
+    let out = audit_dir(&data).expect("audit");
+    eprint!("{}", out.summary());
+    assert_eq!(out.cause, "valve_lag");
+    let m = out.magnitude();
+    assert!((m - 0.45).abs() <= 0.2 * 0.45, "valve_lag estimate {m}");
+    assert!(out.base.nmse_pct >= 5.0 * out.chosen.nmse_pct);
+
+    let json = dir.path().join("audit.json");
+    let plots = dir.path().join("plots");
+    let report = dir.path().join("report.html");
+    write_outputs(&out, Some(&json), Some(&plots), Some(&report)).expect("outputs");
+    let text = std::fs::read_to_string(&json).expect("json");
+    for key in
+        ["\"cause\": \"valve_lag\"", "\"magnitude\": 0.4", "\"nmse_base_pct\"", "\"nmse_extended_pct\"", "\"ranking\""]
+    {
+        assert!(text.contains(key), "JSON lacks {key}:\n{text}");
+    }
+    for f in ["curves_0.svg", "residual_0.svg", "acf.svg"] {
+        let svg = std::fs::read_to_string(plots.join(f)).expect("plot");
+        assert!(svg.starts_with("<svg") && svg.contains("</svg>"), "{f} is not an SVG");
+    }
+    let html = std::fs::read_to_string(&report).expect("report");
+    assert!(html.contains("<svg") && html.contains("valve_lag"));
+}
+
+#[test]
+fn bad_data_set_is_a_clear_error() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let err = audit_dir(dir.path()).expect_err("no manifest");
+    assert!(format!("{err:#}").contains("manifest"), "{err:#}");
+}
+
+/// Larger seeded sweep: 24 single-mechanism cases, 6 pairs, 3 null cases.
+#[test]
+#[ignore = "≈ 3 min on 2 cores; run with --ignored"]
+fn larger_hidden_effect_sweep() {
+    let s = first_seed(101);
+    run_seeds(s..s + 24, 1);
+    run_seeds(s + 1000..s + 1006, 2);
+    for k in 0..3 {
+        let data = synth_data(s + 5000 + k, &[], RELEASES_PER_CASE).expect("data");
+        assert_eq!(audit(&data, AuditOptions::default()).expect("audit").cause, "none");
+    }
+    // draw_case is the single-mechanism shorthand.
+    assert_eq!(draw_case(s, &Effect::ALL).expect("case").truth.len(), 1);
+}

@@ -1,0 +1,233 @@
+//! Host CAN path end to end: monitor → reporter → mock bus / candump log → cab display, with
+//! frames dropped, repeated, reordered, corrupted and injected on the way.
+
+use embedded_can::{ExtendedId, Frame, StandardId};
+use pbm::can::layout::{FAULT_REPORT, STATUS};
+use pbm::can::CanFrame;
+use pbm_io::can_bus::{FrameSink, MockBus};
+use pbm_io::can_log::{format_line, read_log, CandumpWriter};
+use pbm_lab::can_cmd::{
+    decode_log, decode_source, write_demo_log, CabDisplay, DecodeFormat, DecodeSummary, CSV_HEADER,
+};
+use proptest::prelude::*;
+
+fn demo_frames() -> Vec<(u64, CanFrame)> {
+    let (_, bus) = write_demo_log(MockBus::new()).unwrap();
+    bus.queue.into_iter().collect()
+}
+
+fn display(frames: &[(u64, CanFrame)]) -> (DecodeSummary, String) {
+    let mut bus = MockBus { queue: frames.iter().copied().collect() };
+    let mut out = Vec::new();
+    let mut d = CabDisplay::new(&mut out, true, DecodeFormat::Text);
+    decode_source(&mut bus, &mut d).unwrap();
+    let s = d.finish().unwrap();
+    (s, String::from_utf8(out).unwrap())
+}
+
+fn is_fault(f: &CanFrame) -> bool {
+    f.raw_id() == FAULT_REPORT.raw_id()
+}
+
+#[test]
+fn demo_stream_decodes_cleanly_and_covers_every_code() {
+    let frames = demo_frames();
+    let (s, text) = display(&frames);
+    assert_eq!(s.flagged_total(), 0, "{s}");
+    assert_eq!(s.frames, frames.len() as u64);
+    let faults = frames.iter().filter(|(_, f)| is_fault(f)).count() as u64;
+    assert!(faults > 50);
+    assert_eq!(s.fault_reports, faults);
+    assert_eq!(s.status_reports, s.frames - faults);
+    for label in [
+        "normal",
+        "air_leak",
+        "orifice_block",
+        "leak_and_block",
+        "low_supply",
+        "orifice_missing",
+        "cannot_diagnose (sensor_open_circuit)",
+        "cannot_diagnose (sensor_short_circuit)",
+        "cannot_diagnose (too_short)",
+        "cannot_diagnose (unfamiliar_release)",
+        "sensor dropouts",
+        "completed",
+        "sensor open_circuit",
+        "sensor short_circuit",
+        "estimator idle",
+    ] {
+        assert!(text.contains(label), "display shows {label}");
+    }
+    // Status at 1 Hz: one per 100 samples of the whole log.
+    let last_us = frames.last().unwrap().0;
+    assert_eq!(s.status_reports, last_us / 1_000_000 + 1);
+}
+
+#[test]
+fn candump_log_round_trips_the_stream() {
+    let frames = demo_frames();
+    let mut w = CandumpWriter::new(Vec::new(), "can0");
+    for (t, f) in &frames {
+        w.send(*t, f).unwrap();
+    }
+    let text = w.finish().unwrap();
+    let back: Vec<(u64, CanFrame)> = read_log(&text[..]).map(|r| r.map(|r| (r.time_us, r.frame)).unwrap()).collect();
+    assert_eq!(back, frames);
+    let first = String::from_utf8(text[..50].to_vec()).unwrap();
+    assert!(first.starts_with("(0000000000.000000) can0 18FF5180#"), "{first}");
+}
+
+#[test]
+fn tampered_stream_is_flagged_frame_by_frame() {
+    let clean = demo_frames();
+    let (clean_summary, _) = display(&clean);
+    let fault_idx: Vec<usize> = (0..clean.len()).filter(|&i| is_fault(&clean[i].1)).collect();
+    let status_idx: Vec<usize> = (0..clean.len()).filter(|&i| !is_fault(&clean[i].1)).collect();
+    let mut frames = clean.clone();
+
+    // Corrupt one bit of fault report #5: wrong CRC, and #6 then follows a lost frame.
+    let (t, f) = frames[fault_idx[5]];
+    let mut data = f.data().to_vec();
+    data[3] ^= 0x10;
+    frames[fault_idx[5]] = (t, CanFrame::new(f.id(), &data).unwrap());
+    // Replay fault report #20 right after itself.
+    frames.insert(fault_idx[20] + 1, clean[fault_idx[20]]);
+    // Drop status frame #30 (indices after the insert shift by one).
+    let drop_at = status_idx[30] + usize::from(status_idx[30] > fault_idx[20]);
+    frames.remove(drop_at);
+    // Inject foreign traffic: unknown extended id, a standard id, a remote frame, a short frame.
+    frames.push((9_000_000_000, CanFrame::new_extended(0x0CF0_0400, &[0; 8]).unwrap()));
+    frames.push((9_000_000_001, CanFrame::new_standard(0x123, &[1, 2]).unwrap()));
+    frames.push((9_000_000_002, CanFrame::new_remote(ExtendedId::new(FAULT_REPORT.raw_id()).unwrap(), 8).unwrap()));
+    frames.push((9_000_000_003, CanFrame::new_extended(STATUS.raw_id(), &[0; 7]).unwrap()));
+    frames.push((9_000_000_004, CanFrame::new_remote(StandardId::new(0x7FF).unwrap(), 0).unwrap()));
+
+    let (s, text) = display(&frames);
+    let get = |k: &str| s.flagged.get(k).copied().unwrap_or(0);
+    assert_eq!(get("wrong_crc"), 1, "{s}");
+    assert_eq!(get("repeated_counter"), 1, "{s}");
+    // The frame after the corrupted one and the status frame after the dropped one.
+    assert_eq!(get("skipped_counter"), 2, "{s}");
+    assert_eq!(get("unknown_id"), 2, "{s}");
+    assert_eq!(get("remote_frame"), 2, "{s}");
+    assert_eq!(get("wrong_length"), 1, "{s}");
+    assert_eq!(s.flagged_total(), 9);
+    assert_eq!(s.fault_reports, clean_summary.fault_reports - 2);
+    assert_eq!(s.status_reports, clean_summary.status_reports - 2);
+    assert_eq!(text.matches("!! ").count(), 9);
+}
+
+#[test]
+fn reordered_frames_are_flagged() {
+    let mut frames = demo_frames();
+    let fault_idx: Vec<usize> = (0..frames.len()).filter(|&i| is_fault(&frames[i].1)).collect();
+    let (a, b) = (fault_idx[10], fault_idx[11]);
+    frames.swap(a, b);
+    let (s, _) = display(&frames);
+    assert_eq!(s.flagged.get("skipped_counter"), Some(&1), "{s}");
+    assert_eq!(s.flagged.get("out_of_order"), Some(&1), "{s}");
+    assert_eq!(s.flagged_total(), 2);
+}
+
+#[test]
+fn csv_output_has_one_row_per_frame() {
+    let frames = demo_frames();
+    let mut log = String::new();
+    for (t, f) in frames.iter().take(300) {
+        log.push_str(&format_line(*t, "can0", f));
+        log.push('\n');
+    }
+    log.push_str("not a frame\n");
+    let mut out = Vec::new();
+    let mut d = CabDisplay::new(&mut out, false, DecodeFormat::Csv);
+    decode_log(log.as_bytes(), &mut d).unwrap();
+    let s = d.finish().unwrap();
+    let text = String::from_utf8(out).unwrap();
+    let rows: Vec<&str> = text.lines().collect();
+    assert_eq!(rows[0], CSV_HEADER);
+    assert_eq!(rows.len(), 1 + 300 + 1);
+    let ncol = CSV_HEADER.split(',').count();
+    assert!(rows.iter().all(|r| r.split(',').count() == ncol), "every row has {ncol} columns");
+    assert_eq!(s.flagged.get("bad_log_line"), Some(&1));
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    /// Arbitrary bytes as a log: no panic, every line accounted for.
+    #[test]
+    fn arbitrary_logs_never_crash_the_display(bytes in prop::collection::vec(any::<u8>(), 0..600)) {
+        let mut out = Vec::new();
+        let mut d = CabDisplay::new(&mut out, true, DecodeFormat::Text);
+        decode_log(&bytes[..], &mut d).unwrap();
+        let s = d.finish().unwrap();
+        prop_assert_eq!(s.frames, s.fault_reports + s.status_reports + s.flagged_total());
+    }
+
+    /// Log-shaped lines with random ids and data.
+    #[test]
+    fn random_frames_in_log_form(lines in prop::collection::vec((any::<u32>(), prop::collection::vec(any::<u8>(), 0..=8), 0u8..3), 1..40)) {
+        let mut log = String::new();
+        for (i, (id, data, kind)) in lines.iter().enumerate() {
+            let id_txt = match kind {
+                0 => format!("{:08X}", id & 0x1FFF_FFFF),
+                1 => format!("{:08X}", if id % 2 == 0 { FAULT_REPORT.raw_id() } else { STATUS.raw_id() }),
+                _ => format!("{:03X}", id & 0x7FF),
+            };
+            let hex: String = data.iter().map(|b| format!("{b:02X}")).collect();
+            log.push_str(&format!("({:010}.000000) can0 {id_txt}#{hex}\n", i));
+        }
+        let mut d = CabDisplay::new(Vec::new(), true, DecodeFormat::Text);
+        decode_log(log.as_bytes(), &mut d).unwrap();
+        let s = d.finish().unwrap();
+        prop_assert_eq!(s.frames, lines.len() as u64);
+        prop_assert_eq!(s.flagged.get("bad_log_line"), None);
+        prop_assert_eq!(s.fault_reports + s.status_reports + s.flagged_total(), s.frames);
+    }
+}
+
+/// `host-sim replay tests/data/small --can-log`: one fresh pipeline per trace (a restarted
+/// monitor, counters from 0) with a gap between traces. The display sees each gap as a lost
+/// heartbeat, resynchronises and flags nothing; every frame is one of the two report ids.
+#[test]
+fn replayed_data_set_log_decodes_cleanly_across_traces() {
+    let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tests/data/small");
+    let items = pbm_lab::replay::items(std::path::Path::new(data), None).unwrap();
+    assert!(items.len() >= 2);
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("small.log");
+    let written = pbm_lab::replay::write_replay_can_log(&log, &items).unwrap();
+    let text = std::fs::read(&log).unwrap();
+    let frames: Vec<CanFrame> = read_log(&text[..]).map(|r| r.unwrap().frame).collect();
+    assert_eq!(frames.len() as u64, written);
+    assert!(frames.iter().all(|f| f.raw_id() == FAULT_REPORT.raw_id() || f.raw_id() == STATUS.raw_id()));
+    let mut out = Vec::new();
+    let mut d = CabDisplay::new(&mut out, false, DecodeFormat::Text);
+    decode_log(&text[..], &mut d).unwrap();
+    let s = d.finish().unwrap();
+    assert_eq!(s.flagged_total(), 0, "{s}");
+    assert_eq!(s.heartbeat_losses, items.len() as u64 - 1, "{s}");
+    assert_eq!(s.fault_reports, items.len() as u64, "one closed diagnosis per trace: {s}");
+    let text = String::from_utf8(out).unwrap();
+    assert_eq!(text.matches("-- no heartbeat").count(), items.len() - 1);
+}
+
+/// A monitor that restarts within the heartbeat timeout is not trusted at once: its first
+/// frames are flagged out of order until the tracker resynchronises (3 in a row).
+#[test]
+fn restart_without_silence_is_flagged_then_resynchronised() {
+    let clean = demo_frames();
+    // The first 10 s of the stream, then the same stream again 2 s later (a quick restart).
+    let head: Vec<(u64, CanFrame)> = clean.iter().copied().filter(|(t, _)| *t < 10_000_000).collect();
+    let last = head.last().unwrap().0;
+    let mut frames = head.clone();
+    frames.extend(head.iter().map(|(t, f)| (t + last + 2_000_000, *f)));
+    let (s, _) = display(&frames);
+    assert_eq!(s.heartbeat_losses, 0, "{s}");
+    assert!(s.flagged_total() > 0, "{s}");
+    // The same restart after a 5 s silence: accepted at once.
+    let mut frames = head.clone();
+    frames.extend(head.iter().map(|(t, f)| (t + last + 5_000_000, *f)));
+    let (s, _) = display(&frames);
+    assert_eq!((s.heartbeat_losses, s.flagged_total()), (1, 0), "{s}");
+}
