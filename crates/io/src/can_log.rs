@@ -46,12 +46,6 @@ impl std::fmt::Display for LogError {
 
 impl std::error::Error for LogError {}
 
-/// Formats the time stamp as candump does: 10-digit seconds, 6-digit microseconds (the
-/// core's [`pbm::pipeline::candump`] formatter, shared with the firmware).
-pub fn format_time(time_us: u64) -> String {
-    pbm::pipeline::candump::Time(time_us).to_string()
-}
-
 /// Formats a frame as `ID#DATA` (or `ID#R`, `ID#R<len>` for a remote frame).
 pub fn format_frame(frame: &CanFrame) -> String {
     pbm::pipeline::candump::FrameText(frame).to_string()

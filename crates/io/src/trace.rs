@@ -29,16 +29,6 @@ pub enum TraceKind {
     Adc,
 }
 
-impl TraceKind {
-    /// The header name of the value column.
-    pub const fn column_name(self) -> &'static str {
-        match self {
-            Self::PressureBar => "p_bar",
-            Self::Adc => "adc",
-        }
-    }
-}
-
 /// The value column of a trace.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Samples {

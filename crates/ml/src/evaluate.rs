@@ -9,7 +9,7 @@
 
 use crate::nn::Mlp;
 use crate::train::{
-    classes_of, dataset_features, read_mlp, read_quant, train_all, Kind, QuantParams, TraceFeatures, SNAPSHOT_TIMES_S,
+    classes_of, dataset_features, read_mlp, read_quant, Kind, QuantParams, TraceFeatures, SNAPSHOT_TIMES_S,
 };
 use anyhow::{bail, Context, Result};
 use pbm::report::Verdict;
@@ -540,15 +540,4 @@ fn plot_curve(path: &Path, curve: &[(f64, f64, f64)]) -> Result<()> {
         .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED));
     chart.configure_series_labels().border_style(BLACK).background_style(WHITE).draw().map_err(plot_err)?;
     root.present().map_err(plot_err)
-}
-
-/// Trains on `train` and scores ours on `test` at the end of the trace (used by tests).
-pub fn quick_score(train: &[TraceFeatures], test: &[TraceFeatures], seed: u64) -> Result<f64> {
-    let trained = train_all(train, seed)?;
-    let ours = trained.models.iter().find(|m| m.0 == Kind::Ours).context("ours")?;
-    let ok = test
-        .iter()
-        .filter(|d| Some(ours.1.predict(&Kind::Ours.final_row(d))) == class_index(&trained.classes, d.class))
-        .count();
-    Ok(100.0 * ok as f64 / test.len().max(1) as f64)
 }
