@@ -4,7 +4,7 @@
 //! computes the twin's state at the checkpoints on the host and holds it to
 //! `tests/golden/nominal_checkpoints.csv`; the firmware (`firmware/src/bin/twin_check.rs`)
 //! embeds the same file and compares its own run in QEMU against it
-//! (`scripts/firmware-qemu.sh`). After an intended change of the twin, regenerate the file with
+//! (`cargo xtask fw-qemu`). After an intended change of the twin, regenerate the file with
 //! `UPDATE_GOLDEN=1 cargo test --test golden_twin` and review the diff.
 //!
 //! The file is read with the firmware's own parser (one implementation, included by path).

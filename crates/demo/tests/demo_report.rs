@@ -1,5 +1,5 @@
 //! The demo report's HTML builder and its structural check, without a browser (the browser
-//! check of a real demo run is scripts/test-extra-report.sh). The end-to-end quick demo is
+//! check of a real demo run is `cargo xtask report-check`). The end-to-end quick demo is
 //! `#[ignore]`d here (≈ 15–35 s, test profile = opt-level 3): `cargo test -p host-sim --test
 //! demo_report -- --ignored`.
 

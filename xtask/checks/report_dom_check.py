@@ -1,54 +1,8 @@
-#!/usr/bin/env bash
-# The demo report checked as a person would see it (issue 10 item 4); scripts/test-all.sh (CI)
-# runs every scripts/test-extra-*.sh.
-#
-#   1. `host-sim demo --quick` (the whole demo pipeline on 40 + 10 traces per class, ~15 s)
-#      writes target/demo-test/index.html from an empty directory.
-#   2. Headless Chromium (Debian's `chromium`; installed with apt-get when missing) loads the
-#      page from disk with the network disabled and dumps the DOM it built; a screenshot is
-#      taken as well (target/demo-test/screenshot.png).
-#   3. A checker (Python standard library, below) reads the rendered DOM: every required section present and
-#      non-empty, every inline SVG drawing marks (path/polyline/circle/...), every table with
-#      filled body rows, the page's minimum counts of plots and tables, no script and no
-#      external resource; and that the screenshot is not blank.
-set -euo pipefail
-cd "$(dirname "$0")/.."
-
-out=target/demo-test
-step() { printf '\n--- report: %s\n' "$*"; }
-
-step "host-sim demo --quick --out $out (from an empty directory)"
-rm -rf "$out"
-cargo run --release -q -p host-sim -- demo --quick --out "$out"
-
-step "headless chromium"
-browser=""
-for b in chromium chromium-browser google-chrome; do
-    if command -v "$b" >/dev/null 2>&1; then browser="$b"; break; fi
-done
-if [ -z "$browser" ]; then
-    echo "installing chromium (apt)"
-    SUDO=""
-    if [ "$(id -u)" != 0 ]; then SUDO="sudo"; fi
-    $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq chromium >/dev/null
-    browser=chromium
-fi
-page="file://$(pwd)/$out/index.html"
-flags=(--headless --no-sandbox --disable-gpu --hide-scrollbars --no-first-run --disable-extensions
-    --proxy-server=127.0.0.1:9 --proxy-bypass-list='<-loopback>' --user-data-dir="$(pwd)/$out/chromium-profile")
-timeout 120 "$browser" "${flags[@]}" --dump-dom "$page" >"$out/dom.html" 2>"$out/chromium.log" || {
-    cat "$out/chromium.log"
-    exit 1
-}
-timeout 120 "$browser" "${flags[@]}" --window-size=1280,2400 --screenshot="$out/screenshot.png" "$page" \
-    >>"$out/chromium.log" 2>&1 || {
-    cat "$out/chromium.log"
-    exit 1
-}
-
-step "rendered DOM and screenshot"
-python3 - "$out/dom.html" "$out/screenshot.png" <<'PY'
+#!/usr/bin/env python3
+"""The demo report as a person sees it: reads the DOM headless Chromium built from report/index.html
+and the screenshot it took; checks every required section is present and non-empty, every inline
+SVG draws marks, every table has filled body rows, no script or external resource, and the
+screenshot is not blank. Usage: report_dom_check.py DOM.html SCREENSHOT.png"""
 import sys
 from html.parser import HTMLParser
 
@@ -143,5 +97,3 @@ print(f"plots {len(p.svgs)} (marks per plot: min {min(p.svgs, default=0)}), tabl
 if errors:
     print("FAILED:\n  " + "\n  ".join(errors))
     sys.exit(1)
-PY
-echo "report: all checks passed ($out/index.html)"
