@@ -10,6 +10,8 @@
 //! - [`plausibility`]: real-time checks that the pressure signal is one a working transducer
 //!   can produce (frozen, dead, noisy, spikes, dropouts, lost resolution, clipping, rates, levels).
 //! - [`fault`]: fault classes (SPEC §4).
+//! - [`mechanism`]: the optional mechanisms beyond SPEC §2, described once (name, unit, ranges,
+//!   plain-language description) for validation, generator, audits, help and reports.
 //! - [`metrics`]: NMSE (SPEC §6).
 //! - [`monitor`]: the per-sample pipeline (ADC in, reports out).
 //! - [`report`]: fault and status reports, independent of the CAN layout.
@@ -31,6 +33,7 @@ pub mod estimator;
 pub mod fault;
 pub mod features;
 pub mod fixed;
+pub mod mechanism;
 pub mod metrics;
 pub mod monitor;
 pub mod params;

@@ -1,5 +1,6 @@
 //! Physical parameters of the parking brake (SPEC §3) and the physical constants of SPEC §2.
 
+use crate::mechanism::{Extensions, Mechanism};
 use crate::units::{BarG, Meters};
 
 /// Specific heat ratio of air.
@@ -68,110 +69,9 @@ pub struct TwinParams {
     pub static_n: f64,
     /// Stribeck velocity vs, m/s.
     pub stribeck_m_per_s: f64,
-    /// Mechanisms beyond SPEC §2 (model-discrepancy audit); [`Extensions::NONE`] for the base
+    /// Mechanisms beyond SPEC §2 ([`crate::mechanism`]); [`Extensions::NONE`] for the base
     /// model of SPEC §2, which the twin then runs bit for bit unchanged.
     pub ext: Extensions,
-}
-
-/// Optional mechanisms the base model of SPEC §2 lacks, one magnitude each (the names and units
-/// of `host-sim --effect NAME=VALUE`). Every field at its [`Extensions::NONE`] value switches the
-/// mechanism off; the twin then skips it entirely.
-///
-/// Definitions (shared by the fixed-point twin and the f64 plant of host-sim):
-/// - `transport_delay_s`: a valve command reaches the chamber this long after it is given.
-/// - `valve_lag_s`: after each (delayed) switching the valve's opening area rises as
-///   1 − e^(−t/τ) (both the supply path and the vent path).
-/// - `heat_transfer_s`: the chamber gas temperature T becomes a state (energy equation, inflow at
-///   the supply temperature, outflow at T) and relaxes to the wall temperature
-///   [`TEMPERATURE_K`] with this time constant: Q = m c_v (T_wall − T)/τ. The chamber starts
-///   at the wall temperature. Off: the base model (gas at the supply temperature throughout).
-/// - `sensor_lag_s`: first-order lag of the transducer on the gauge pressure.
-/// - `sensor_offset_bar`, `sensor_gain`: the transducer reads `offset + gain · p` (bar g).
-/// - `regulator_droop_bar`: the supply sags by this much at the choked flow of the nominal
-///   1.25 mm orifice (same Cf and supply), proportionally to the actual inflow.
-/// - `progressive_spring`: β of K(x) = K (1 + β x / L); spring force F0 + K(x) · x.
-/// - `laminar_leak_g_per_s`: a leak to atmosphere whose mass flow is proportional to the gauge
-///   pressure, this many g/s at 7 bar g.
-/// - `gas_temperature_k`: supply air temperature (0 = [`TEMPERATURE_K`]); without heat transfer
-///   the chamber gas is at this temperature too.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Extensions {
-    /// Transport delay of the valve command, s (0 = none).
-    pub transport_delay_s: f64,
-    /// Valve opening time constant, s (0 = instantaneous).
-    pub valve_lag_s: f64,
-    /// Gas-to-wall heat transfer time constant, s (0 = none: base model).
-    pub heat_transfer_s: f64,
-    /// Transducer first-order lag, s (0 = none).
-    pub sensor_lag_s: f64,
-    /// Transducer zero offset, bar (0 = none).
-    pub sensor_offset_bar: f64,
-    /// Transducer gain, ratio (1 = none).
-    pub sensor_gain: f64,
-    /// Supply sag at the nominal orifice's choked flow, bar (0 = none).
-    pub regulator_droop_bar: f64,
-    /// Relative spring stiffening at full stroke β (0 = linear spring).
-    pub progressive_spring: f64,
-    /// Laminar leak mass flow at 7 bar g, g/s (0 = none).
-    pub laminar_leak_g_per_s: f64,
-    /// Supply air temperature, K (0 = [`TEMPERATURE_K`]).
-    pub gas_temperature_k: f64,
-}
-
-impl Extensions {
-    /// No extension: the base model of SPEC §2.
-    pub const NONE: Self = Self {
-        transport_delay_s: 0.0,
-        valve_lag_s: 0.0,
-        heat_transfer_s: 0.0,
-        sensor_lag_s: 0.0,
-        sensor_offset_bar: 0.0,
-        sensor_gain: 1.0,
-        regulator_droop_bar: 0.0,
-        progressive_spring: 0.0,
-        laminar_leak_g_per_s: 0.0,
-        gas_temperature_k: 0.0,
-    };
-
-    /// True when every mechanism is off.
-    pub fn is_none(&self) -> bool {
-        *self == Self::NONE
-    }
-
-    /// Supply air temperature, K.
-    pub fn supply_temperature_k(&self) -> f64 {
-        if self.gas_temperature_k > 0.0 {
-            self.gas_temperature_k
-        } else {
-            TEMPERATURE_K
-        }
-    }
-
-    /// True when the transducer model differs from the ideal sensor.
-    pub fn has_sensor_terms(&self) -> bool {
-        self.sensor_lag_s > 0.0 || self.sensor_offset_bar != 0.0 || self.sensor_gain != 1.0
-    }
-
-    /// Checks every magnitude is finite and inside the range the fixed-point twin is scaled for.
-    pub fn validate(&self) -> Result<(), ParamError> {
-        let checks: [(f64, f64, f64); 10] = [
-            (self.transport_delay_s, 0.0, 10.0),
-            (self.valve_lag_s, 0.0, 20.0),
-            (self.heat_transfer_s, 0.0, 1000.0),
-            (self.sensor_lag_s, 0.0, 20.0),
-            (self.sensor_offset_bar, -2.0, 2.0),
-            (self.sensor_gain, 0.5, 1.5),
-            (self.regulator_droop_bar, 0.0, 5.0),
-            (self.progressive_spring, -0.9, 5.0),
-            (self.laminar_leak_g_per_s, 0.0, 20.0),
-            (self.gas_temperature_k, 0.0, 500.0),
-        ];
-        within(&checks, ParamError::Extension)?;
-        if self.gas_temperature_k != 0.0 && self.gas_temperature_k < 150.0 {
-            return Err(ParamError::Extension);
-        }
-        Ok(())
-    }
 }
 
 /// `Ok` when every `(value, lo, hi)` has a value in `lo..=hi` (so not NaN), else `err`.
@@ -180,12 +80,6 @@ pub(crate) fn within(checks: &[(f64, f64, f64)], err: ParamError) -> Result<(), 
         Ok(())
     } else {
         Err(err)
-    }
-}
-
-impl Default for Extensions {
-    fn default() -> Self {
-        Self::NONE
     }
 }
 
@@ -301,16 +195,27 @@ pub enum ParamError {
     Spring,
     /// A friction parameter out of range (or Fs < Fc).
     Friction,
-    /// An extension magnitude out of range (see [`Extensions::validate`]), or a mechanism the
-    /// model does not have (see [`crate::reservoir::ReservoirParams::validate`]).
-    Extension,
+    /// A mechanism's magnitude outside the range the model supports ([`crate::mechanism::Scope::valid`]).
+    Extension(Mechanism),
+    /// A mechanism the model does not have ([`crate::mechanism::Descriptor::reservoir`]).
+    Unsupported(Mechanism),
     /// A reservoir model parameter out of range (see [`crate::reservoir::ReservoirParams`]).
     Reservoir,
 }
 
 impl core::fmt::Display for ParamError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        let what = match self {
+        let what = match *self {
+            Self::Extension(m) => {
+                let d = m.descriptor();
+                let (lo, hi) = d.brake.valid;
+                write!(f, "{m} out of the supported range (brake twin: {lo}..={hi} {}", d.unit)?;
+                if let Some(r) = d.reservoir {
+                    write!(f, "; reservoir: {}..={} {}", r.valid.0, r.valid.1, d.unit)?;
+                }
+                return f.write_str(")");
+            }
+            Self::Unsupported(m) => return write!(f, "{m} is not a mechanism of this model"),
             Self::Supply => "supply pressure must be 0..=15 bar g",
             Self::Orifice => "orifice diameter must be 0..=10 mm",
             Self::Leak => "leak diameter must be 0..=5 mm",
@@ -321,7 +226,6 @@ impl core::fmt::Display for ParamError {
             Self::Mass => "moving mass must be 0.5..=500 kg",
             Self::Spring => "spring preload (0..=60 kN) or rate (0..=4e6 N/m) out of range",
             Self::Friction => "friction parameter out of range (or static < Coulomb)",
-            Self::Extension => "extension magnitude out of range or not supported by this model",
             Self::Reservoir => {
                 "reservoir volume (0.01..=10 m³), compressor flow (0..=200 g/s), outlet orifice \
                  (0..=20 mm, stable at the 0.5 s step) or discharge coefficient (0.05..=1) out of range"

@@ -18,24 +18,25 @@
 //! [`TEMPERATURE_K`] as θ Q24, increments per substep summed in Q40 bar and rounded once (as in
 //! the twin). One [`Reservoir::update`] advances [`RESERVOIR_SUBSTEP_S`].
 //!
-//! # Mechanisms ([`Extensions`])
+//! # Mechanisms ([`Extensions`], ranges in [`crate::mechanism::Descriptor::reservoir`])
 //!
-//! - `transport_delay_s`: loading reaches the reservoir this long after the command (the
+//! - `transport_delay`: loading reaches the reservoir this long after the command (the
 //!   compressor outlet must first climb to reservoir pressure before the check valve opens);
 //!   unloading acts at once.
-//! - `valve_lag_s`: the delivered flow rises as 1 − e^(−t/τ) after loading.
-//! - `heat_transfer_s`: the gas temperature is a state, relaxing to the wall with this time
+//! - `valve_lag`: the delivered flow rises as 1 − e^(−t/τ) after loading.
+//! - `heat_transfer`: the gas temperature is a state, relaxing to the wall with this time
 //!   constant; the compressor delivers at the input temperature. Off (the base model, SPEC §2
 //!   chamber equation at constant T): every flow is at [`TEMPERATURE_K`].
-//! - `sensor_lag_s`, `sensor_offset_bar`, `sensor_gain`: the transducer.
-//! - `laminar_leak_g_per_s`: an extra leak ∝ gauge pressure, this many g/s at 7 bar g.
+//! - `sensor_lag`, `sensor_offset`, `sensor_gain`: the transducer.
+//! - `laminar_leak`: an extra leak ∝ gauge pressure, this many g/s at 7 bar g.
 //!
-//! `regulator_droop_bar`, `progressive_spring` and `gas_temperature_k` have no counterpart (no
+//! `regulator_droop`, `progressive_spring` and `gas_temperature` have no counterpart (no
 //! regulator, no piston, the delivery temperature is an input): [`ReservoirParams::validate`]
 //! rejects them.
 
 use crate::fixed::{sat_i32, to_q_i64};
-use crate::params::{choked_orifice_gain, within, Extensions, ParamError, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
+use crate::mechanism::{Extensions, Mechanism::*};
+use crate::params::{choked_orifice_gain, within, ParamError, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
 use crate::twin::{
     chamber_substep, heat_rate_q30, isqrt_q24, laminar_gain, vent_increments_q40, LineCoeffs, SensorCoeffs, ValveLine,
     LAMINAR_SLOPE,
@@ -82,21 +83,8 @@ impl ReservoirParams {
         ];
         within(&checks, ParamError::Reservoir)?;
         // The mechanisms' ranges at this model's time scale (the brake twin's are for a 60 s
-        // release); the laminar leak is bounded through its gain in [`ReservoirCoeffs::new`].
-        let e = &self.ext;
-        let ranges: [(f64, f64, f64); 7] = [
-            (e.transport_delay_s, 0.0, 120.0),
-            (e.valve_lag_s, 0.0, 300.0),
-            (e.heat_transfer_s, 0.0, 10_000.0),
-            (e.sensor_lag_s, 0.0, 300.0),
-            (e.sensor_offset_bar, -2.0, 2.0),
-            (e.sensor_gain, 0.5, 1.5),
-            (e.laminar_leak_g_per_s, 0.0, 100.0),
-        ];
-        within(&ranges, ParamError::Extension)?;
-        if e.regulator_droop_bar != 0.0 || e.progressive_spring != 0.0 || e.gas_temperature_k != 0.0 {
-            return Err(ParamError::Extension);
-        }
+        // release); the laminar leak is also bounded through its gain in [`ReservoirCoeffs::new`].
+        self.ext.validate_in(|d| d.reservoir)?;
         Ok(())
     }
 }
@@ -130,7 +118,7 @@ impl ReservoirCoeffs {
         // Same orifice gain as the twin's, per substep.
         let c_vent = vent_rate_per_s(p) * h;
         let inflow = fill_rate_bar_per_s(p) * h;
-        let laminar = laminar_gain(e.laminar_leak_g_per_s, TEMPERATURE_K, p.volume_m3, h);
+        let laminar = laminar_gain(e[LaminarLeak], TEMPERATURE_K, p.volume_m3, h);
         // Explicit steps must stay small (accuracy and monotonicity: the vent step is monotone
         // down to atmosphere while `c_vent · LAMINAR_SLOPE < 1`, kept with a factor of two), which
         // also bounds every product of the substep inside i64.
@@ -141,9 +129,9 @@ impl ReservoirCoeffs {
             inflow_q40: to_q_i64(inflow, 40),
             c_vent_q32: to_q_i64(c_vent, 32),
             laminar_q40: to_q_i64(laminar, 40),
-            line: LineCoeffs::new(e.transport_delay_s, e.valve_lag_s, h),
-            heat_rate_q30: heat_rate_q30(e.heat_transfer_s, h),
-            sensor: SensorCoeffs::new(e.sensor_lag_s, e.sensor_offset_bar, e.sensor_gain, h),
+            line: LineCoeffs::new(e[TransportDelay], e[ValveLag], h),
+            heat_rate_q30: heat_rate_q30(e[HeatTransfer], h),
+            sensor: SensorCoeffs::new(e[SensorLag], e[SensorOffset], e[SensorGain], h),
         })
     }
 }
@@ -302,7 +290,7 @@ mod tests {
     #[test]
     fn heat_transfer_settles_hot_delivery_back_to_the_wall() {
         let mut p = params();
-        p.ext.heat_transfer_s = 20.0;
+        p.ext[HeatTransfer] = 20.0;
         let mut r = Reservoir::new(&p).unwrap();
         r.restart(PressureQ24::from_bar_g(crate::BarG(8.0)), true);
         let hot = KelvinQ8::from_celsius(80.0);
@@ -325,7 +313,7 @@ mod tests {
     #[test]
     fn transport_delay_holds_back_loading_only() {
         let mut p = params();
-        p.ext.transport_delay_s = 5.0;
+        p.ext[TransportDelay] = 5.0;
         let mut r = Reservoir::new(&p).unwrap();
         let start = PressureQ24::from_bar_g(crate::BarG(8.0));
         r.restart(start, true);
@@ -346,9 +334,9 @@ mod tests {
     #[test]
     fn sensor_terms_and_restart_invert_each_other() {
         let mut p = params();
-        p.ext.sensor_offset_bar = -0.05;
-        p.ext.sensor_gain = 1.03;
-        p.ext.sensor_lag_s = 4.0;
+        p.ext[SensorOffset] = -0.05;
+        p.ext[SensorGain] = 1.03;
+        p.ext[SensorLag] = 4.0;
         let mut r = Reservoir::new(&p).unwrap();
         let reading = PressureQ24::from_bar_g(crate::BarG(9.2));
         r.restart(reading, true);
@@ -371,8 +359,8 @@ mod tests {
     #[test]
     fn unsupported_or_unstable_parameters_are_rejected() {
         let mut p = params();
-        p.ext.progressive_spring = 0.2;
-        assert_eq!(Reservoir::new(&p), Err(ParamError::Extension));
+        p.ext[ProgressiveSpring] = 0.2;
+        assert_eq!(Reservoir::new(&p), Err(ParamError::Unsupported(ProgressiveSpring)));
         let mut p = params();
         p.outlet = Meters::from_mm(19.0);
         assert_eq!(Reservoir::new(&p), Err(ParamError::Reservoir));
@@ -388,8 +376,8 @@ mod tests {
         p.volume_m3 = 0.1;
         p.compressor_g_per_s = 42.0;
         p.outlet = Meters::from_mm(1.0);
-        p.ext.laminar_leak_g_per_s = 1.1;
-        p.ext.heat_transfer_s = 5.0;
+        p.ext[LaminarLeak] = 1.1;
+        p.ext[HeatTransfer] = 5.0;
         let mut r = Reservoir::new(&p).unwrap();
         for delivery in [KelvinQ8(i32::MAX), KelvinQ8(i32::MIN), KelvinQ8(0)] {
             for _ in 0..20_000 {

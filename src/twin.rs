@@ -44,9 +44,8 @@
 //! are public pieces: [`crate::reservoir`] assembles its compressor-fed reservoir from them.
 
 use crate::fixed::{rshr, sat_i32, to_q_i32, to_q_i64};
-use crate::params::{
-    choked_orifice_gain, circle_area, Extensions, ParamError, TwinParams, GAS_CONSTANT, KAPPA, TEMPERATURE_K,
-};
+use crate::mechanism::{Extensions, Mechanism::*};
+use crate::params::{choked_orifice_gain, circle_area, ParamError, TwinParams, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
 use crate::units::{Meters, PressureQ24};
 
 mod lut {
@@ -365,17 +364,19 @@ impl TwinCoeffs {
     /// uses an optional mechanism in a build without the `extensions` feature (the firmware).
     pub fn new(p: &TwinParams) -> Result<Self, ParamError> {
         p.validate()?;
-        if !cfg!(feature = "extensions") && !p.ext.is_none() {
-            // Built without the optional mechanisms (the firmware): the twin could not run them.
-            return Err(ParamError::Extension);
+        if !cfg!(feature = "extensions") {
+            if let Some((m, _)) = p.ext.active().next() {
+                // Built without the optional mechanisms (the firmware): the twin could not run them.
+                return Err(ParamError::Unsupported(m));
+            }
         }
         let h = SUBSTEP_S;
         let orifice_gain = |d: Meters| choked_orifice_gain(p.discharge_coeff, d) * h / p.dead_volume_m3;
         let e = &p.ext;
         // Without heat transfer the gas is at the supply temperature throughout: both orifice
         // gains scale by sqrt(Ts/T0) (exactly 1 in the base model, where the factor is skipped).
-        let theta_s = e.supply_temperature_k() / TEMPERATURE_K;
-        let gas_scale = if e.gas_temperature_k > 0.0 && e.heat_transfer_s == 0.0 { libm::sqrt(theta_s) } else { 1.0 };
+        let theta_s = e[GasTemperature] / TEMPERATURE_K;
+        let gas_scale = if e.is_on(GasTemperature) && !e.is_on(HeatTransfer) { libm::sqrt(theta_s) } else { 1.0 };
         let c_in = orifice_gain(p.orifice) * gas_scale;
         let c_leak = orifice_gain(p.leak) * gas_scale;
         // An Euler pressure step is monotone at the plateau while its gain stays below 1; keep a
@@ -414,24 +415,24 @@ impl TwinCoeffs {
     fn ext_coeffs(p: &TwinParams, theta_s: f64, c_in: f64) -> ExtCoeffs {
         let e: &Extensions = &p.ext;
         let h = SUBSTEP_S;
-        let thermal = e.heat_transfer_s > 0.0;
+        let thermal = e[HeatTransfer] > 0.0;
         // Nominal orifice's choked increment on the same basis as `c_in` (same Cf, V0, gas).
         let nominal_gain = c_in * circle_area(Meters::from_mm(TwinParams::NOMINAL_ORIFICE_MM)) / circle_area(p.orifice);
         let nominal_gain = if p.orifice.0 > 0.0 { nominal_gain } else { 0.0 };
         let droop_ref = p.supply.to_abs_bar() * nominal_gain;
         // Laminar leak: m = q (p − P0)/7 bar; increment kRT h/V0 · m, in bar per bar g.
-        let gas_t = if thermal { TEMPERATURE_K } else { e.supply_temperature_k() };
-        let laminar = laminar_gain(e.laminar_leak_g_per_s, gas_t, p.dead_volume_m3, h);
+        let gas_t = if thermal { TEMPERATURE_K } else { e[GasTemperature] };
+        let laminar = laminar_gain(e[LaminarLeak], gas_t, p.dead_volume_m3, h);
         ExtCoeffs {
             active: true,
-            line: LineCoeffs::new(e.transport_delay_s, e.valve_lag_s, h),
-            heat_rate_q30: heat_rate_q30(e.heat_transfer_s, h),
+            line: LineCoeffs::new(e[TransportDelay], e[ValveLag], h),
+            heat_rate_q30: heat_rate_q30(e[HeatTransfer], h),
             sqrt_theta_s_q24: to_q_i64(libm::sqrt(theta_s), 24),
             inv_sqrt_theta_s_q24: to_q_i64(1.0 / libm::sqrt(theta_s), 24),
-            sensor: SensorCoeffs::new(e.sensor_lag_s, e.sensor_offset_bar, e.sensor_gain, h),
-            droop_q24: if droop_ref > 0.0 { to_q_i64(e.regulator_droop_bar, 24) } else { 0 },
+            sensor: SensorCoeffs::new(e[SensorLag], e[SensorOffset], e[SensorGain], h),
+            droop_q24: if droop_ref > 0.0 { to_q_i64(e[RegulatorDroop], 24) } else { 0 },
             droop_ref_q40: to_q_i64(droop_ref, 40).max(1),
-            spring_quad_q4: to_q_i64(p.spring_rate_n_per_m * e.progressive_spring / p.stroke.0, 4),
+            spring_quad_q4: to_q_i64(p.spring_rate_n_per_m * e[ProgressiveSpring] / p.stroke.0, 4),
             laminar_q40: to_q_i64(laminar, 40),
         }
     }
@@ -972,8 +973,8 @@ mod tests {
     #[test]
     fn without_the_extensions_feature_extended_parameters_are_rejected() {
         let mut p = TwinParams::nominal();
-        p.ext.sensor_offset_bar = 0.1;
-        assert_eq!(Twin::new(&p).err(), Some(ParamError::Extension));
+        p.ext[SensorOffset] = 0.1;
+        assert_eq!(Twin::new(&p).err(), Some(ParamError::Unsupported(SensorOffset)));
         assert_eq!(Twin::new(&TwinParams::nominal()), Ok(Twin::nominal()));
     }
 

@@ -31,13 +31,13 @@
 use anyhow::{bail, Context, Result};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use pbm::can::{Decoder, Report};
+use pbm::mechanism::Mechanism;
 use pbm::{AdcCounts, FaultClass};
 use pbm_io::dataset::{read_manifest, trace_path, ManifestRow, MANIFEST, TRUTH};
 use pbm_io::trace::{read_trace, Samples};
 use pbm_lab::audit_sweep::{check_case, draw_case, CaseResult as AuditCase};
 use pbm_lab::estimate::{self, CaseResult as EstimateCase, Param};
 use pbm_lab::generate::{generate_with, GenerateArgs};
-use pbm_lab::plant::Effect;
 use pbm_lab::replay::{replay_trace, summarise, ReplayItem};
 use pbm_ml::evaluate::{accuracy_vs_time, score_all, stable_by, Score};
 use pbm_ml::nn::Mlp;
@@ -482,7 +482,7 @@ fn estimator_stage(dir: &Path, test: &[TraceFeatures]) -> Result<Vec<EstimateCas
 // Stage 2b: audit
 
 fn audit_stage(seed: u64) -> Result<AuditCase> {
-    let case = draw_case(seed, &Effect::ALL)?;
+    let case = draw_case(seed, &Mechanism::ALL)?;
     check_case(&case)
 }
 
@@ -1066,7 +1066,7 @@ fn section_audit(r: &DemoResults) -> Result<Section> {
          uniformly over the {} mechanisms of the plant library, inside physically plausible ranges); {} noisy releases of \
          one locomotive were generated with it and audited without being told what it was.",
         r.info.seed,
-        Effect::ALL.len(),
+        Mechanism::ALL.len(),
         pbm_lab::audit_sweep::RELEASES_PER_CASE
     )));
     let (truth, named) = audit_line(a);

@@ -32,7 +32,7 @@
 //! 3. **Diagnostics** of the base residual: by release phase (filling at rest, stroke, end stop
 //!    and plateau, from the twin's travel), by time, Ljung–Box whiteness, cross-correlation with
 //!    the twin's pressure rate (the input the chamber sees) and the phase indicator.
-//! 4. **Candidates**: base + each mechanism of [`crate::plant::Effect`] (the extended core twin,
+//! 4. **Candidates**: base + each mechanism of [`pbm::mechanism::Mechanism`] (the extended core twin,
 //!    the same terms the firmware can run), then the pairs of the [`PAIR_POOL`] best singles.
 //!    Each is a bounded Levenberg–Marquardt fit (own implementation with an active set on the
 //!    box bounds: argmin's Nelder–Mead needs several hundred twin runs per fit where LM needs
@@ -69,9 +69,9 @@
 //! spread (`none` is then the right answer), a `regulator_droop` below ≈ 0.4 bar is mostly a Cf
 //! and supply change, and a `sensor_gain` closer to 1 than ≈ 0.02 is partly a supply change.
 
-use crate::plant::Effect;
 use anyhow::{bail, Context, Result};
-use pbm::params::Extensions;
+use pbm::mechanism::Extensions;
+use pbm::mechanism::Mechanism;
 use pbm::sensor::bar_from_adc;
 use pbm::twin::SAMPLE_PERIOD_S;
 use pbm::{AdcCounts, BarG, Meters, Twin, TwinParams};
@@ -250,38 +250,19 @@ pub fn base_params(config: &TwinParams, u: &[f64]) -> TwinParams {
     p
 }
 
-/// Magnitude of `effect` at normalised coordinate `u` in [0, 1] (heat transfer in 1/τ, so
-/// that u = 0 is "off" for it as well).
-pub fn effect_value(effect: Effect, u: f64) -> f64 {
-    let (lo, hi) = effect.search_range();
-    if effect == Effect::HeatTransfer {
-        let rate = u.clamp(0.0, 1.0) / lo;
-        if rate <= 1.0 / hi {
-            0.0
-        } else {
-            1.0 / rate
-        }
-    } else {
-        lo + (hi - lo) * u.clamp(0.0, 1.0)
-    }
+/// Magnitude of `effect` at normalised coordinate `u` in [0, 1] (the brake scope's search of
+/// [`pbm::mechanism::MECHANISMS`]; heat transfer in 1/τ, so that u = 0 is "off" for it as well).
+pub fn effect_value(effect: Mechanism, u: f64) -> f64 {
+    effect.descriptor().brake.value_at(u)
 }
 
 /// Inverse of [`effect_value`].
-pub fn effect_u(effect: Effect, value: f64) -> f64 {
-    let (lo, hi) = effect.search_range();
-    if effect == Effect::HeatTransfer {
-        if value <= 0.0 {
-            0.0
-        } else {
-            (lo / value).clamp(0.0, 1.0)
-        }
-    } else {
-        ((value - lo) / (hi - lo)).clamp(0.0, 1.0)
-    }
+pub fn effect_u(effect: Mechanism, value: f64) -> f64 {
+    effect.descriptor().brake.coordinate_of(value)
 }
 
 /// d value / d u at `u` (for the uncertainty).
-fn effect_slope(effect: Effect, u: f64) -> f64 {
+fn effect_slope(effect: Mechanism, u: f64) -> f64 {
     let h = 1e-4;
     let (a, b) = ((u - h).max(0.0), (u + h).min(1.0));
     (effect_value(effect, b) - effect_value(effect, a)) / (b - a)
@@ -293,7 +274,7 @@ pub fn twin_trace(params: &TwinParams, n: usize) -> Option<(Vec<f64>, Vec<f64>)>
     let mut p = Vec::with_capacity(n);
     let mut x = Vec::with_capacity(n);
     if n > 0 {
-        p.push(params.ext.sensor_offset_bar);
+        p.push(params.ext[Mechanism::SensorOffset]);
         x.push(0.0);
     }
     for _ in 1..n {
@@ -306,18 +287,18 @@ pub fn twin_trace(params: &TwinParams, n: usize) -> Option<(Vec<f64>, Vec<f64>)>
 
 /// True when `effects` make the supply gas temperature and Cf one direction (no heat transfer:
 /// every orifice flow's pressure rate scales by Cf √(T/T0)).
-fn cf_degenerate(effects: &[Effect]) -> bool {
-    effects.contains(&Effect::GasTemperature) && !effects.contains(&Effect::HeatTransfer)
+fn cf_degenerate(effects: &[Mechanism]) -> bool {
+    effects.contains(&Mechanism::GasTemperature) && !effects.contains(&Mechanism::HeatTransfer)
 }
 
 /// Moves a gas-temperature fit along the Cf–T degenerate direction to the nominal Cf (the centre
 /// of its tolerance), keeping the product Cf √(T/T0) and therefore the fit: the data cannot say
 /// which of the two it is, and the centre halves the worst-case magnitude error.
-fn recenter_gas_temperature(effects: &[Effect], x: &mut [f64]) {
+fn recenter_gas_temperature(effects: &[Mechanism], x: &mut [f64]) {
     if !cf_degenerate(effects) {
         return;
     }
-    let Some(i) = effects.iter().position(|&e| e == Effect::GasTemperature) else {
+    let Some(i) = effects.iter().position(|&e| e == Mechanism::GasTemperature) else {
         return;
     };
     let g = BASE_NAMES.len() + i;
@@ -325,25 +306,25 @@ fn recenter_gas_temperature(effects: &[Effect], x: &mut [f64]) {
         return;
     };
     let cf_scale = 1.0 + BASE_SPREAD * (2.0 * u_cf - 1.0);
-    let t = effect_value(Effect::GasTemperature, u_t);
+    let t = effect_value(Mechanism::GasTemperature, u_t);
     let t_centre = pbm::params::TEMPERATURE_K * (cf_scale * (t / pbm::params::TEMPERATURE_K).sqrt()).powi(2);
-    let (lo, hi) = Effect::GasTemperature.search_range();
+    let (lo, hi) = Mechanism::GasTemperature.descriptor().brake.search;
     if (lo..=hi).contains(&t_centre) {
         x[0] = 0.5;
-        x[g] = effect_u(Effect::GasTemperature, t_centre);
+        x[g] = effect_u(Mechanism::GasTemperature, t_centre);
     }
 }
 
 /// True when normalised coordinate `u` switches `effect` off (to 1e-3 of its search range).
-fn is_off(effect: Effect, u: f64) -> bool {
-    let (lo, hi) = effect.search_range();
-    (effect_value(effect, u) - effect.off_value()).abs() <= 1e-3 * (hi - lo)
+fn is_off(effect: Mechanism, u: f64) -> bool {
+    let (lo, hi) = effect.descriptor().brake.search;
+    (effect_value(effect, u) - effect.off()).abs() <= 1e-3 * (hi - lo)
 }
 
 /// A pair fit with one mechanism switched off *is* a fit of the other mechanism alone: it
 /// replaces that single's fit when better (the single's own search stopped in a worse point)
 /// and is dropped as a pair, so an "a + nothing" model can never be named as a pair.
-fn collapse_degenerate_pairs(fits: &mut Vec<(Vec<Effect>, LmResult, usize)>) {
+fn collapse_degenerate_pairs(fits: &mut Vec<(Vec<Mechanism>, LmResult, usize)>) {
     let nb = BASE_NAMES.len();
     let mut singles_better = Vec::new();
     fits.retain(|(effects, lm, ev)| {
@@ -654,7 +635,7 @@ pub struct CandidateFit {
     /// `base`, a mechanism name, or `a+b`.
     pub name: String,
     /// Mechanisms and their fitted magnitudes and 1-σ uncertainties.
-    pub effects: Vec<(Effect, f64, f64)>,
+    pub effects: Vec<(Mechanism, f64, f64)>,
     /// Fitted base parameters (unit box).
     pub base_u: Vec<f64>,
     /// Weighted residual sum of squares (decimated samples, units of σ_mean²).
@@ -675,17 +656,17 @@ struct Problem<'a> {
 }
 
 impl Problem<'_> {
-    fn params(&self, g: &Group, x: &[f64], effects: &[Effect]) -> TwinParams {
+    fn params(&self, g: &Group, x: &[f64], effects: &[Mechanism]) -> TwinParams {
         let mut p = base_params(&g.config, &x[..BASE_NAMES.len()]);
         p.ext = Extensions::NONE;
         for (i, &e) in effects.iter().enumerate() {
-            e.set(&mut p.ext, effect_value(e, x[BASE_NAMES.len() + i]));
+            p.ext[e] = effect_value(e, x[BASE_NAMES.len() + i]);
         }
         p
     }
 
     /// Weighted residuals (model − measured)/σ_mean at the decimated samples of all groups.
-    fn residual(&self, x: &[f64], effects: &[Effect]) -> Option<Vec<f64>> {
+    fn residual(&self, x: &[f64], effects: &[Mechanism]) -> Option<Vec<f64>> {
         let mut out = Vec::new();
         for g in &self.data.groups {
             let p = self.params(g, x, effects);
@@ -695,7 +676,7 @@ impl Problem<'_> {
         Some(out)
     }
 
-    fn predictions(&self, x: &[f64], effects: &[Effect]) -> Vec<(Vec<f64>, Vec<f64>)> {
+    fn predictions(&self, x: &[f64], effects: &[Mechanism]) -> Vec<(Vec<f64>, Vec<f64>)> {
         self.data
             .groups
             .iter()
@@ -706,7 +687,7 @@ impl Problem<'_> {
             .collect()
     }
 
-    fn nmse(&self, x: &[f64], effects: &[Effect]) -> f64 {
+    fn nmse(&self, x: &[f64], effects: &[Mechanism]) -> f64 {
         let preds = self.predictions(x, effects);
         let measured: Vec<f64> = self.data.groups.iter().flat_map(|g| g.mean.iter().copied()).collect();
         let model: Vec<f64> = preds.into_iter().flat_map(|(p, _)| p).collect();
@@ -717,18 +698,18 @@ impl Problem<'_> {
     /// then refines the `refine` best from their best point; sorted by RSS.
     fn screen_and_refine(
         &self,
-        jobs: &[(Vec<Effect>, Vec<Vec<f64>>)],
+        jobs: &[(Vec<Mechanism>, Vec<Vec<f64>>)],
         refine: usize,
         max_iter: usize,
-    ) -> Vec<(Vec<Effect>, LmResult, usize)> {
-        let mut screened: Vec<(Vec<Effect>, LmResult, usize)> = jobs
+    ) -> Vec<(Vec<Mechanism>, LmResult, usize)> {
+        let mut screened: Vec<(Vec<Mechanism>, LmResult, usize)> = jobs
             .par_iter()
             .filter_map(|(effects, starts)| {
                 self.fit(effects, starts, SCREEN_ITER).map(|(lm, ev)| (effects.clone(), lm, ev))
             })
             .collect();
         screened.sort_by(|a, b| a.1.rss.total_cmp(&b.1.rss));
-        let mut refined: Vec<(Vec<Effect>, LmResult, usize)> = screened
+        let mut refined: Vec<(Vec<Mechanism>, LmResult, usize)> = screened
             .into_par_iter()
             .enumerate()
             .map(|(i, (effects, lm, ev))| {
@@ -746,7 +727,7 @@ impl Problem<'_> {
         refined
     }
 
-    fn fit(&self, effects: &[Effect], starts: &[Vec<f64>], max_iter: usize) -> Option<(LmResult, usize)> {
+    fn fit(&self, effects: &[Mechanism], starts: &[Vec<f64>], max_iter: usize) -> Option<(LmResult, usize)> {
         let f = |x: &[f64]| self.residual(x, effects);
         let results: Vec<LmResult> = starts.par_iter().filter_map(|x0| levenberg_marquardt(&f, x0, max_iter)).collect();
         let evals = results.iter().map(|r| r.evaluations).sum();
@@ -950,10 +931,10 @@ impl Default for AuditOptions {
 pub struct AuditOutcome {
     /// Where the data came from (directory or description).
     pub source: String,
-    /// Named cause: a mechanism, `a+b` (names in [`Effect::ALL`] order), or `none`.
+    /// Named cause: a mechanism, `a+b` (names in [`Mechanism::ALL`] order), or `none`.
     pub cause: String,
     /// Mechanisms of the cause with magnitude and 1-σ uncertainty (empty for `none`).
-    pub cause_effects: Vec<(Effect, f64, f64)>,
+    pub cause_effects: Vec<(Mechanism, f64, f64)>,
     /// Base model fit.
     pub base: CandidateFit,
     /// The chosen model (the base for `none`).
@@ -996,7 +977,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         vec![vec![0.5; nb], vec![0.3, 0.7, 0.5, 0.5, 0.5, 0.5], vec![0.7, 0.3, 0.5, 0.5, 0.5, 0.5]];
     let (base_lm, base_evals) = prob.fit(&[], &base_starts, opts.max_iter).context("the base twin cannot run")?;
     let n = base_lm.residual.len();
-    let mk = |name: String, effects: &[Effect], lm: &LmResult, evals: usize| CandidateFit {
+    let mk = |name: String, effects: &[Mechanism], lm: &LmResult, evals: usize| CandidateFit {
         name,
         effects: effects.iter().enumerate().map(|(i, &e)| (e, effect_value(e, lm.x[nb + i]), f64::NAN)).collect(),
         base_u: lm.x[..nb].to_vec(),
@@ -1009,12 +990,14 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     // Singles, then pairs of the best singles: every candidate gets a short screening fit from
     // each start (one start is the base optimum with the mechanism off, so no candidate ends
     // worse than the base it contains), then the most promising are refined to convergence.
-    let off_u = |e: Effect| effect_u(e, e.off_value());
-    let single_jobs: Vec<(Vec<Effect>, Vec<Vec<f64>>)> = Effect::ALL
+    let off_u = |e: Mechanism| effect_u(e, e.off());
+    let single_jobs: Vec<(Vec<Mechanism>, Vec<Vec<f64>>)> = Mechanism::ALL
         .iter()
         .map(|&e| {
             let starts = e
-                .starts()
+                .descriptor()
+                .brake
+                .starts
                 .iter()
                 .map(|&m| effect_u(e, m))
                 .chain([off_u(e)])
@@ -1025,7 +1008,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         .collect();
     let mut fits = prob.screen_and_refine(&single_jobs, REFINED_SINGLES, opts.max_iter);
     if opts.pairs && fits.len() >= 2 {
-        let top: Vec<(Effect, f64, Vec<f64>)> =
+        let top: Vec<(Mechanism, f64, Vec<f64>)> =
             fits.iter().map(|(e, lm, _)| (e[0], lm.x[nb], lm.x[..nb].to_vec())).collect();
         let mut pair_jobs = Vec::new();
         for i in 0..top.len() {
@@ -1036,7 +1019,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
                 if !(j < PAIR_POOL || i == 0) {
                     continue;
                 }
-                // Canonical order (that of `Effect::ALL`), so `a+b` names are stable.
+                // Canonical order (that of `Mechanism::ALL`), so `a+b` names are stable.
                 let (a, b) = if top[i].0 <= top[j].0 { (&top[i], &top[j]) } else { (&top[j], &top[i]) };
                 let (oa, ob) = (off_u(a.0), off_u(b.0));
                 // From each single's optimum with the other mechanism barely on, and halfway.
@@ -1054,7 +1037,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         // in a worse point must not make a pair look better than it is.
         // Only the best pair can be named, and only if it beats the best single by the RSS rule.
         let best_single_rss = fits.first().map_or(f64::INFINITY, |f| f.1.rss);
-        let drop_jobs: Vec<(Effect, Vec<f64>)> = pairs
+        let drop_jobs: Vec<(Mechanism, Vec<f64>)> = pairs
             .iter()
             .take(1)
             .filter(|(_, lm, _)| lm.rss * MIN_RSS_RATIO <= best_single_rss)
@@ -1065,7 +1048,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
                 })
             })
             .collect();
-        let refits: Vec<(Effect, LmResult, usize)> = drop_jobs
+        let refits: Vec<(Mechanism, LmResult, usize)> = drop_jobs
             .par_iter()
             .filter_map(|(e, x0)| prob.fit(&[*e], std::slice::from_ref(x0), opts.max_iter).map(|(lm, ev)| (*e, lm, ev)))
             .collect();
@@ -1113,7 +1096,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
             for (i, eff) in c.effects.iter_mut().enumerate() {
                 let g = nb + i;
                 let slope = effect_slope(eff.0, lm.x[g]).abs();
-                eff.2 = if cf_degenerate(effects) && eff.0 == Effect::GasTemperature {
+                eff.2 = if cf_degenerate(effects) && eff.0 == Mechanism::GasTemperature {
                     // Cf and T are one direction: the statistical part with Cf held, plus the
                     // Cf tolerance (uniform ± BASE_SPREAD, T ∝ Cf⁻²) as a prior uncertainty.
                     let stat = (s2 / lm.jtj[g * dims + g].max(1e-300)).sqrt() * slope;
@@ -1147,7 +1130,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     let cause = if chosen.effects.is_empty() { "none".to_owned() } else { chosen.name.clone() };
     let chosen_x: Vec<f64> =
         chosen.base_u.iter().copied().chain(chosen.effects.iter().map(|&(e, v, _)| effect_u(e, v))).collect();
-    let chosen_effects: Vec<Effect> = chosen.effects.iter().map(|e| e.0).collect();
+    let chosen_effects: Vec<Mechanism> = chosen.effects.iter().map(|e| e.0).collect();
     let base_preds = prob.predictions(&base_lm.x, &[]);
     let chosen_preds = prob.predictions(&chosen_x, &chosen_effects);
     let diagnostics = diagnostics(data, &base_preds);
@@ -1204,7 +1187,7 @@ impl AuditOutcome {
     /// "noise_sigma_bar", "ranking"}`.
     ///
     /// - one mechanism: `cause` is its name, `magnitude` a number in its unit;
-    /// - two: `cause` is `a+b` (names in [`Effect::ALL`] order, i.e. the issue's), `magnitude` and
+    /// - two: `cause` is `a+b` (names in [`Mechanism::ALL`] order, i.e. the issue's), `magnitude` and
     ///   `uncertainty` are arrays in the same order;
     /// - `none`: `magnitude` and `uncertainty` are `null`.
     ///

@@ -1,5 +1,5 @@
 //! Hidden-effect cases for the audit: a seeded draw of a locomotive (SPEC §5 spread), one or
-//! two mechanisms and plausible magnitudes ([`crate::plant::Effect::plausible`]), noisy
+//! two mechanisms and plausible magnitudes ([`pbm::mechanism::Scope::plausible`]), noisy
 //! releases from the f64 plant (σ = 0.01 bar, 12-bit ADC, exactly as `host-sim generate`), the
 //! audit, and the verdict checked: right name(s), magnitude(s) within 20 %, extended NMSE ≥ 5×
 //! lower than base. `host-sim audit-sweep --cases N --seed S [--pairs M] [--null-cases K]`
@@ -11,9 +11,9 @@
 
 use crate::audit::{audit, data_from_traces, AuditData, AuditOptions, AuditOutcome};
 use crate::generate::{fleet, sense, simulate_plant, GENERATE_STEP_S, TRACE_SAMPLES};
-use crate::plant::Effect;
 use crate::random::unit;
 use anyhow::{bail, Result};
+use pbm::mechanism::Mechanism;
 use pbm::sensor::bar_from_adc;
 use pbm::AdcCounts;
 use rand_chacha::ChaCha8Rng;
@@ -37,17 +37,17 @@ pub struct Case {
     /// Seed of the case.
     pub seed: u64,
     /// Hidden mechanisms and magnitudes (empty: clean plant).
-    pub truth: Vec<(Effect, f64)>,
+    pub truth: Vec<(Mechanism, f64)>,
     /// The data.
     pub data: AuditData,
 }
 
 /// `releases` noisy releases of one locomotive (drawn from `seed`) with the given mechanisms.
-pub fn synth_data(seed: u64, truth: &[(Effect, f64)], releases: usize) -> Result<AuditData> {
+pub fn synth_data(seed: u64, truth: &[(Mechanism, f64)], releases: usize) -> Result<AuditData> {
     let loco = fleet(seed, 1).into_iter().next().map(|l| l.params).unwrap_or_default();
     let mut plant = loco;
     for &(e, v) in truth {
-        e.set(&mut plant.ext, v);
+        plant.ext[e] = v;
     }
     let (p, _) = simulate_plant(&plant, GENERATE_STEP_S, TRACE_SAMPLES)?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5eed_a0d1);
@@ -64,9 +64,9 @@ pub fn synth_data(seed: u64, truth: &[(Effect, f64)], releases: usize) -> Result
 
 /// Draws `count` distinct mechanisms from `pool` and a magnitude for each, from `seed`.
 /// `range` (if given) replaces the plausible ranges.
-pub fn draw_truth(seed: u64, pool: &[Effect], count: usize, range: Option<(f64, f64)>) -> Vec<(Effect, f64)> {
+pub fn draw_truth(seed: u64, pool: &[Mechanism], count: usize, range: Option<(f64, f64)>) -> Vec<(Mechanism, f64)> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut left: Vec<Effect> = pool.to_vec();
+    let mut left: Vec<Mechanism> = pool.to_vec();
     let mut truth = Vec::new();
     for _ in 0..count.min(pool.len()) {
         let i = ((unit(&mut rng) * left.len() as f64) as usize).min(left.len().saturating_sub(1));
@@ -74,7 +74,7 @@ pub fn draw_truth(seed: u64, pool: &[Effect], count: usize, range: Option<(f64, 
         let (ui, uv) = (unit(&mut rng), unit(&mut rng));
         let value = match range {
             Some((lo, hi)) => lo + (hi - lo) * uv,
-            None => effect.draw(ui, uv),
+            None => effect.descriptor().brake.draw(ui, uv),
         };
         truth.push((effect, value));
     }
@@ -83,12 +83,12 @@ pub fn draw_truth(seed: u64, pool: &[Effect], count: usize, range: Option<(f64, 
 }
 
 /// The case of `seed`: one mechanism drawn uniformly from `pool`, magnitude from its plausible range.
-pub fn draw_case(seed: u64, pool: &[Effect]) -> Result<Case> {
+pub fn draw_case(seed: u64, pool: &[Mechanism]) -> Result<Case> {
     draw_case_with(seed, pool, 1, None)
 }
 
 /// The case of `seed` with `count` distinct mechanisms (see [`draw_truth`]).
-pub fn draw_case_with(seed: u64, pool: &[Effect], count: usize, range: Option<(f64, f64)>) -> Result<Case> {
+pub fn draw_case_with(seed: u64, pool: &[Mechanism], count: usize, range: Option<(f64, f64)>) -> Result<Case> {
     if pool.is_empty() {
         bail!("no mechanism to draw from");
     }
@@ -97,8 +97,8 @@ pub fn draw_case_with(seed: u64, pool: &[Effect], count: usize, range: Option<(f
 }
 
 /// The magnitude criterion (see the module docs).
-pub fn magnitude_within(effect: Effect, truth: f64, estimate: f64) -> bool {
-    let scale = if effect == Effect::SensorGain { truth - effect.off_value() } else { truth };
+pub fn magnitude_within(effect: Mechanism, truth: f64, estimate: f64) -> bool {
+    let scale = if effect == Mechanism::SensorGain { truth - effect.off() } else { truth };
     (estimate - truth).abs() <= MAGNITUDE_TOLERANCE * scale.abs()
 }
 
@@ -106,7 +106,7 @@ pub fn magnitude_within(effect: Effect, truth: f64, estimate: f64) -> bool {
 #[derive(Debug, Clone)]
 pub struct CaseResult {
     /// The case's truth.
-    pub truth: Vec<(Effect, f64)>,
+    pub truth: Vec<(Mechanism, f64)>,
     /// The audit's verdict.
     pub outcome: AuditOutcome,
     /// Right name(s).
@@ -159,10 +159,10 @@ impl CaseResult {
 }
 
 /// Checks an audit verdict against the truth.
-pub fn check_outcome(truth: &[(Effect, f64)], outcome: AuditOutcome) -> CaseResult {
-    let mut names: Vec<Effect> = outcome.cause_effects.iter().map(|e| e.0).collect();
+pub fn check_outcome(truth: &[(Mechanism, f64)], outcome: AuditOutcome) -> CaseResult {
+    let mut names: Vec<Mechanism> = outcome.cause_effects.iter().map(|e| e.0).collect();
     names.sort();
-    let mut want: Vec<Effect> = truth.iter().map(|e| e.0).collect();
+    let mut want: Vec<Mechanism> = truth.iter().map(|e| e.0).collect();
     want.sort();
     let name_ok = names == want;
     let magnitude_ok = name_ok
@@ -226,8 +226,8 @@ impl Tally {
 
 /// `host-sim audit-sweep`.
 pub fn run(a: &SweepArgs) -> Result<()> {
-    let pool: Vec<Effect> = if a.effects.is_empty() {
-        Effect::ALL.to_vec()
+    let pool: Vec<Mechanism> = if a.effects.is_empty() {
+        Mechanism::ALL.to_vec()
     } else {
         a.effects.iter().map(|n| crate::plant::effect_by_name(n.trim())).collect::<Result<_>>()?
     };
@@ -255,7 +255,7 @@ pub fn run(a: &SweepArgs) -> Result<()> {
     let mut singles = Tally::default();
     let mut pairs = Tally::default();
     let mut nulls = Tally::default();
-    let mut per: Vec<(Effect, Tally)> = pool.iter().map(|&e| (e, Tally::default())).collect();
+    let mut per: Vec<(Mechanism, Tally)> = pool.iter().map(|&e| (e, Tally::default())).collect();
     let mut gains = Vec::new();
     for r in results {
         let (count, r) = r?;

@@ -212,7 +212,7 @@ fn parse_effect_arg(s: &str) -> Result<(String, f64), String> {
 #[non_exhaustive]
 pub struct PlantEffects {
     /// Mechanisms applied to every trace's plant.
-    pub ext: pbm::params::Extensions,
+    pub ext: pbm::mechanism::Extensions,
 }
 
 impl PlantEffects {

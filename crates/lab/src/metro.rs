@@ -48,10 +48,11 @@ use crate::audit::{
     inverse_diag, levenberg_marquardt, noise_sigma, ranking_line, verdict_json, RankedFit, RankingJson, VerdictJson,
     BIC_THRESHOLD, MIN_RSS_RATIO,
 };
-use crate::plant::Effect;
 use crate::random::{normal_pair, unit};
 use anyhow::{bail, Context, Result};
-use pbm::params::{Extensions, KAPPA, TEMPERATURE_K};
+use pbm::mechanism::Extensions;
+use pbm::mechanism::Mechanism;
+use pbm::params::{KAPPA, TEMPERATURE_K};
 use pbm::reservoir::{fill_rate_bar_per_s, vent_rate_per_s, Reservoir, ReservoirParams, RESERVOIR_SUBSTEP_S};
 use pbm::twin::laminar_gain;
 use pbm::{BarG, KelvinQ8, Meters, PressureQ24};
@@ -124,84 +125,54 @@ pub fn read_metro(path: &Path) -> Result<Vec<MetroRow>> {
 /// (`regulator_droop`, `progressive_spring` and `gas_temperature` have no counterpart: no
 /// regulator, no piston, the delivery temperature is measured). Names and units are the brake
 /// audit's; `laminar_leak` is at [`METRO_VOLUME_M3`].
-pub const METRO_EFFECTS: [Effect; 7] = [
-    Effect::HeatTransfer,
-    Effect::TransportDelay,
-    Effect::ValveLag,
-    Effect::SensorLag,
-    Effect::SensorOffset,
-    Effect::SensorGain,
-    Effect::LaminarLeak,
+pub const METRO_EFFECTS: [Mechanism; 7] = [
+    Mechanism::HeatTransfer,
+    Mechanism::TransportDelay,
+    Mechanism::ValveLag,
+    Mechanism::SensorLag,
+    Mechanism::SensorOffset,
+    Mechanism::SensorGain,
+    Mechanism::LaminarLeak,
 ];
 
-/// What the metro audit needs of a mechanism besides the brake library's definition: its
-/// search box and starting points at this model's time scale, and a plausible range for the
-/// synthetic sweep.
-pub trait MetroMechanism {
-    /// Magnitude from the fit's unit box `u` (0..1).
-    fn metro_value(self, u: f64) -> f64;
-    /// Plausible range of a hidden magnitude for the synthetic sweep (sensor offset and gain:
-    /// the size of the deviation, drawn with a random sign).
-    fn metro_plausible(self) -> (f64, f64);
-    /// False for the mechanisms a TP3 record cannot separate from the base: between 8 and
-    /// 10 bar a transducer offset or gain is a small change of the fitted compressor delivery
-    /// and decay rate (dp/dt = fill − λ p seen through `o + g p` is the same form with a constant
-    /// λ(g − 1) or λ o added), and a laminar leak ∝ (p − 1) is the outlet orifice's ∝ p minus a
-    /// constant. Hidden in a record they leave the base at the noise floor (`none` is then the
-    /// right answer) or give a poor magnitude.
-    fn metro_identifiable(self) -> bool;
+/// The reservoir scope of a metro candidate ([`pbm::mechanism::Descriptor::reservoir`]).
+fn scope(e: Mechanism) -> pbm::mechanism::Scope {
+    // Every entry of METRO_EFFECTS has a reservoir scope (a test checks it); any other
+    // mechanism is off in this model and never searched.
+    e.descriptor().reservoir.unwrap_or(pbm::mechanism::Scope {
+        valid: (e.off(), e.off()),
+        search: (e.off(), e.off()),
+        scale: pbm::mechanism::SearchScale::Linear,
+        starts: &[],
+        plausible: &[],
+        plausible_why: "",
+        identifiable: false,
+    })
 }
 
-impl MetroMechanism for Effect {
-    fn metro_value(self, u: f64) -> f64 {
-        let u = u.clamp(0.0, 1.0);
-        match self {
-            // 1/τ linear, u = 0 is "off".
-            Effect::HeatTransfer => {
-                if u < 1e-6 {
-                    0.0
-                } else {
-                    5.0 / u
-                }
-            }
-            Effect::TransportDelay => 40.0 * u,
-            Effect::ValveLag | Effect::SensorLag => 60.0 * u,
-            Effect::SensorOffset => -0.2 + 0.4 * u,
-            Effect::SensorGain => 0.9 + 0.2 * u,
-            Effect::LaminarLeak => 1.5 * u,
-            // Not a metro candidate: always off.
-            _ => self.off_value(),
-        }
-    }
-    fn metro_plausible(self) -> (f64, f64) {
-        match self {
-            Effect::HeatTransfer => (10.0, 60.0),
-            Effect::TransportDelay => (4.0, 20.0),
-            Effect::ValveLag | Effect::SensorLag => (8.0, 40.0),
-            Effect::SensorOffset => (0.03, 0.15),
-            Effect::SensorGain => (0.02, 0.08),
-            Effect::LaminarLeak => (0.5, 1.5),
-            _ => (0.0, 0.0),
-        }
-    }
-    fn metro_identifiable(self) -> bool {
-        !matches!(self, Effect::SensorOffset | Effect::SensorGain | Effect::LaminarLeak)
-    }
+/// Magnitude of a candidate from the fit's unit box `u` (0..1).
+fn metro_value(e: Mechanism, u: f64) -> f64 {
+    scope(e).value_at(u)
+}
+
+/// False for the mechanisms a TP3 record cannot separate from the base
+/// ([`pbm::mechanism::Scope::identifiable`]): hidden in a record they leave the base at the
+/// noise floor (`none` is then the right answer) or give a poor magnitude.
+pub fn metro_identifiable(e: Mechanism) -> bool {
+    scope(e).identifiable
 }
 
 /// d value / d u (for the uncertainty).
-fn metro_slope(e: Effect, u: f64) -> f64 {
+fn metro_slope(e: Mechanism, u: f64) -> f64 {
     let h = 1e-4;
     let (a, b) = ((u - h).max(0.0), (u + h).min(1.0));
-    (e.metro_value(b) - e.metro_value(a)) / (b - a)
+    (metro_value(e, b) - metro_value(e, a)) / (b - a)
 }
 
 /// Starting points of a candidate's magnitude in the unit box.
-fn metro_starts(e: Effect) -> &'static [f64] {
-    match e {
-        Effect::SensorOffset | Effect::SensorGain => &[0.4, 0.6],
-        _ => &[0.05, 0.3, 0.8],
-    }
+fn metro_starts(e: Mechanism) -> Vec<f64> {
+    let s = scope(e);
+    s.starts.iter().map(|&v| s.coordinate_of(v)).collect()
 }
 
 /// Reservoir volume the fit assumes, m³ (main reservoir and piping of the air production unit).
@@ -213,11 +184,11 @@ pub const METRO_DISCHARGE_COEFF: f64 = 0.8;
 
 /// The core reservoir's parameters for a point `u` of the fit's unit box (`u[0]`: compressor
 /// delivery 0.5–30.5 g/s, `u[1]`: outlet orifice 0.15–5 mm, log scale) with `effects` on.
-pub fn metro_params(u: &[f64], effects: &[(Effect, f64)]) -> ReservoirParams {
+pub fn metro_params(u: &[f64], effects: &[(Mechanism, f64)]) -> ReservoirParams {
     let at = |i: usize| u.get(i).copied().unwrap_or(0.5).clamp(0.0, 1.0);
     let mut ext = Extensions::NONE;
     for &(e, v) in effects {
-        e.set(&mut ext, v);
+        ext[e] = v;
     }
     ReservoirParams {
         volume_m3: METRO_VOLUME_M3,
@@ -325,7 +296,7 @@ impl ReferenceReservoir {
             params: *params,
             fill: fill_rate_bar_per_s(params),
             leak: vent_rate_per_s(params),
-            laminar: laminar_gain(params.ext.laminar_leak_g_per_s, TEMPERATURE_K, params.volume_m3, 1.0),
+            laminar: laminar_gain(params.ext[Mechanism::LaminarLeak], TEMPERATURE_K, params.volume_m3, 1.0),
             p: 1.0,
             temp: TEMPERATURE_K,
             sensed: 0.0,
@@ -339,7 +310,7 @@ impl ReferenceReservoir {
 impl MetroModel for ReferenceReservoir {
     fn restart(&mut self, reading_bar_g: f64, settle: bool) {
         let e = &self.params.ext;
-        let shift = (reading_bar_g - e.sensor_offset_bar) / e.sensor_gain - self.sensed;
+        let shift = (reading_bar_g - e[Mechanism::SensorOffset]) / e[Mechanism::SensorGain] - self.sensed;
         self.sensed += shift;
         self.p = (self.p + shift).max(0.0);
         if settle {
@@ -354,7 +325,7 @@ impl MetroModel for ReferenceReservoir {
         let h = RESERVOIR_SUBSTEP_S;
         let (fill, leak) = (self.fill, self.leak);
         let t0 = TEMPERATURE_K;
-        let delay = if command { e.transport_delay_s } else { 0.0 };
+        let delay = if command { e[Mechanism::TransportDelay] } else { 0.0 };
         if command != self.pending.map_or(self.loaded_eff, |(_, s)| s) {
             self.pending = Some((0.0, command));
         }
@@ -372,7 +343,7 @@ impl MetroModel for ReferenceReservoir {
             }
         }
         // Mean opening over the substep, 1 − e^(−t/τ) from the switch.
-        let lag = e.valve_lag_s;
+        let lag = e[Mechanism::ValveLag];
         let ramp =
             if lag > 0.0 { 1.0 - lag / h * (1.0 - (-h / lag).exp()) * (-self.since_switch / lag).exp() } else { 1.0 };
         self.since_switch += h;
@@ -380,12 +351,12 @@ impl MetroModel for ReferenceReservoir {
         let q_in = fill * (new_share * on(self.loaded_eff) * ramp + (1.0 - new_share) * on(previous));
         let p = self.p;
         let q_lam = self.laminar * (p - 1.0);
-        let dp = if e.heat_transfer_s > 0.0 {
+        let dp = if e[Mechanism::HeatTransfer] > 0.0 {
             let theta = self.temp / t0;
             let q_out = leak * p / theta.sqrt() + q_lam; // mass flows on the T0 basis
             let e_out = leak * p * theta.sqrt() + q_lam * theta;
             let tc = delivery_c + 273.15;
-            let dp = (q_in * tc / t0 - e_out + p * (t0 - self.temp) / (self.temp * e.heat_transfer_s)) * h;
+            let dp = (q_in * tc / t0 - e_out + p * (t0 - self.temp) / (self.temp * e[Mechanism::HeatTransfer])) * h;
             let dm_rel = (q_in - q_out) * h * theta / (KAPPA * p);
             self.temp = (self.temp * (1.0 + dp / p - dm_rel)).clamp(75.0, 1200.0);
             dp
@@ -394,9 +365,9 @@ impl MetroModel for ReferenceReservoir {
         };
         self.p = (p + dp).max(0.0);
         let (start, end) = (p - 1.0, self.p - 1.0);
-        self.sensed = if e.sensor_lag_s > 0.0 {
+        self.sensed = if e[Mechanism::SensorLag] > 0.0 {
             // Exact first-order response to the pressure ramp over the substep.
-            let tau = e.sensor_lag_s;
+            let tau = e[Mechanism::SensorLag];
             let keep = (-h / tau).exp();
             end - (end - start) * tau / h * (1.0 - keep) + (self.sensed - start) * keep
         } else {
@@ -406,7 +377,7 @@ impl MetroModel for ReferenceReservoir {
 
     fn reading(&self) -> f64 {
         let e = &self.params.ext;
-        e.sensor_offset_bar + e.sensor_gain * self.sensed
+        e[Mechanism::SensorOffset] + e[Mechanism::SensorGain] * self.sensed
     }
 }
 
@@ -483,7 +454,7 @@ pub struct SweepCase {
     /// Seed of the case (the record's noise and the draw).
     pub seed: u64,
     /// The hidden mechanism and magnitude.
-    pub truth: (Effect, f64),
+    pub truth: (Mechanism, f64),
     /// What the audit named.
     pub cause: String,
     /// The named magnitude (first mechanism), if any.
@@ -496,7 +467,7 @@ impl SweepCase {
     /// Right name and magnitude within 20 % (of the deviation from 1 for a gain).
     pub fn named_right(&self) -> bool {
         let (e, v) = self.truth;
-        let size = |x: f64| x - e.off_value();
+        let size = |x: f64| x - e.off();
         self.cause == e.name() && self.magnitude.is_some_and(|m| (size(m) - size(v)).abs() <= 0.2 * size(v).abs())
     }
     /// The audit named a mechanism that is not the hidden one (alone or in a pair).
@@ -519,14 +490,10 @@ pub fn synthetic_sweep(cases: usize, seed: u64) -> Result<Vec<SweepCase>> {
             let mut rng = ChaCha8Rng::seed_from_u64(case_seed ^ 0x6d65_7472_6f00);
             let pick = (unit(&mut rng) * METRO_EFFECTS.len() as f64) as usize;
             let effect = METRO_EFFECTS[pick.min(METRO_EFFECTS.len() - 1)];
-            let (lo, hi) = effect.metro_plausible();
-            let size = lo + (hi - lo) * unit(&mut rng);
-            let sign = if unit(&mut rng) < 0.5 { -1.0 } else { 1.0 };
-            let value = match effect {
-                Effect::SensorOffset => sign * size,
-                Effect::SensorGain => 1.0 + sign * size,
-                _ => size,
-            };
+            // Place before side, as the draws have always been made (one seed, one case).
+            let u_value = unit(&mut rng);
+            let u_side = unit(&mut rng);
+            let value = scope(effect).draw(u_side, u_value);
             let params = metro_params(&SYNTHETIC_BASE_U, &[(effect, value)]);
             let rows = synthetic_rows(&params, SYNTHETIC_ROWS, SYNTHETIC_SIGMA_BAR, case_seed);
             let out = audit_metro(&rows)?;
@@ -578,7 +545,7 @@ pub fn sweep_summary(cases: &[SweepCase]) -> String {
         );
     }
     for (label, identifiable) in [("identifiable", true), ("collinear with the base", false)] {
-        let of: Vec<&SweepCase> = cases.iter().filter(|c| c.truth.0.metro_identifiable() == identifiable).collect();
+        let of: Vec<&SweepCase> = cases.iter().filter(|c| metro_identifiable(c.truth.0) == identifiable).collect();
         let n = of.len().max(1) as f64;
         let named = of.iter().filter(|c| c.named_right()).count();
         let hits = of.iter().filter(|c| c.hit()).count();
@@ -602,7 +569,7 @@ pub struct MetroFit {
     pub name: String,
     /// Mechanisms, magnitudes and 1-σ uncertainties (Gauss–Newton covariance at the optimum,
     /// inflated by n/n_eff as in the brake audit).
-    pub effects: Vec<(Effect, f64, f64)>,
+    pub effects: Vec<(Mechanism, f64, f64)>,
     /// RSS (σ units).
     pub rss: f64,
     /// ΔBIC vs base.
@@ -636,13 +603,14 @@ pub struct MetroOutcome {
 pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
     let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
     let sigma = noise_sigma(&measured).max(1e-3);
-    let resid = |u: &[f64], effects: &[Effect]| -> Option<Vec<f64>> {
-        let on: Vec<(Effect, f64)> = effects.iter().enumerate().map(|(i, &e)| (e, e.metro_value(u[2 + i]))).collect();
+    let resid = |u: &[f64], effects: &[Mechanism]| -> Option<Vec<f64>> {
+        let on: Vec<(Mechanism, f64)> =
+            effects.iter().enumerate().map(|(i, &e)| (e, metro_value(e, u[2 + i]))).collect();
         let m = simulate(rows, &metro_params(u, &on))?;
         let r: Vec<f64> = m.iter().zip(&measured).map(|(a, b)| (a - b) / sigma).collect();
         r.iter().all(|v| v.is_finite()).then_some(r)
     };
-    let fit = |effects: &[Effect], starts: Vec<Vec<f64>>| {
+    let fit = |effects: &[Mechanism], starts: Vec<Vec<f64>>| {
         starts
             .par_iter()
             .filter_map(|x0| levenberg_marquardt(&|u: &[f64]| resid(u, effects), x0, 60))
@@ -650,15 +618,15 @@ pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
     };
     let base_starts: Vec<Vec<f64>> = [0.2, 0.5, 0.8].iter().flat_map(|&a| [0.3, 0.6].map(|b| vec![a, b])).collect();
     let base_lm = fit(&[], base_starts).context("base model cannot be fitted")?;
-    let mut fits: Vec<(Vec<Effect>, crate::audit::LmResult)> = METRO_EFFECTS
+    let mut fits: Vec<(Vec<Mechanism>, crate::audit::LmResult)> = METRO_EFFECTS
         .par_iter()
         .filter_map(|&e| {
-            let starts = metro_starts(e).iter().map(|&s| vec![base_lm.x[0], base_lm.x[1], s]).collect();
+            let starts = metro_starts(e).into_iter().map(|s| vec![base_lm.x[0], base_lm.x[1], s]).collect();
             fit(&[e], starts).map(|lm| (vec![e], lm))
         })
         .collect();
     fits.sort_by(|a, b| a.1.rss.total_cmp(&b.1.rss));
-    let top: Vec<(Effect, f64)> = fits.iter().take(3).map(|(e, lm)| (e[0], lm.x[2])).collect();
+    let top: Vec<(Mechanism, f64)> = fits.iter().take(3).map(|(e, lm)| (e[0], lm.x[2])).collect();
     let mut pair_fits = Vec::new();
     for i in 0..top.len() {
         for j in i + 1..top.len() {
@@ -676,15 +644,15 @@ pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
     let rho = crate::audit::acf(&best.residual, 1).first().copied().unwrap_or(0.0).clamp(0.0, 0.995);
     let n_eff = (n as f64 * (1.0 - rho) / (1.0 + rho)).max(5.0);
     let dbic = |r0: f64, r1: f64, dk: usize| n_eff * (r0 / r1.max(1e-300)).ln() - dk as f64 * n_eff.ln();
-    let mk = |effects: &[Effect], lm: &crate::audit::LmResult| {
-        let on: Vec<(Effect, f64)> =
-            effects.iter().enumerate().map(|(i, &e)| (e, e.metro_value(lm.x[2 + i]))).collect();
+    let mk = |effects: &[Mechanism], lm: &crate::audit::LmResult| {
+        let on: Vec<(Mechanism, f64)> =
+            effects.iter().enumerate().map(|(i, &e)| (e, metro_value(e, lm.x[2 + i]))).collect();
         let params = metro_params(&lm.x, &on);
         // 1-σ from s² (JᵀJ)⁻¹ with s² = RSS/(n − k) inflated for the residual correlation.
         let dims = lm.x.len();
         let s2 = lm.rss / n.saturating_sub(dims).max(1) as f64 * (n as f64 / n_eff);
         let diag = inverse_diag(&lm.jtj, dims);
-        let eff: Vec<(Effect, f64, f64)> = on
+        let eff: Vec<(Mechanism, f64, f64)> = on
             .iter()
             .enumerate()
             .map(|(i, &(e, v))| (e, v, (diag[2 + i] * s2).max(0.0).sqrt() * metro_slope(e, lm.x[2 + i]).abs()))
@@ -932,4 +900,19 @@ pub fn run(a: &MetroArgs) -> Result<()> {
     let (rows, out) = audit_metro_file(&a.path)?;
     print!("{}", out.summary());
     write_metro_outputs(&rows, &out, a.json.as_deref(), a.plot.as_deref())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_candidates_are_the_mechanisms_the_reservoir_has() {
+        let mut with_scope: Vec<Mechanism> =
+            Mechanism::ALL.into_iter().filter(|m| m.descriptor().reservoir.is_some()).collect();
+        let mut candidates = METRO_EFFECTS.to_vec();
+        with_scope.sort();
+        candidates.sort();
+        assert_eq!(candidates, with_scope);
+    }
 }

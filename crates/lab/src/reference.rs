@@ -6,12 +6,13 @@
 //! than the core's 1 ms substep) with the same semi-implicit treatment of linear damping.
 //!
 //! It is also the "measured-like" plant of the model-discrepancy audit: the mechanisms of
-//! [`pbm::params::Extensions`] (see there for their definitions) are evaluated here in f64,
+//! [`pbm::mechanism::Extensions`] (see there for their definitions) are evaluated here in f64,
 //! independently of the core's integer terms. The gas temperature is a state (energy equation)
 //! when heat transfer is on; the valve command travels through a delay line and the valve opens
 //! with a first-order area lag; the transducer ([`ReferenceTwin::sensor_bar_g`]) lags, offsets
 //! and scales the chamber pressure. With no extension the step is the base model's, unchanged.
 
+use pbm::mechanism::Mechanism;
 use pbm::params::{c1, c2, circle_area, CRITICAL_RATIO, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
 use pbm::Meters;
 use pbm::{ParamError, TwinParams};
@@ -98,7 +99,11 @@ impl ReferenceTwin {
                 effective: false,
                 pending_s: None,
                 since_switch_s: 1e9,
-                gas_k: if params.ext.heat_transfer_s > 0.0 { TEMPERATURE_K } else { params.ext.supply_temperature_k() },
+                gas_k: if params.ext[Mechanism::HeatTransfer] > 0.0 {
+                    TEMPERATURE_K
+                } else {
+                    params.ext[Mechanism::GasTemperature]
+                },
                 sensed_bar_g: 0.0,
             },
         })
@@ -132,8 +137,8 @@ impl ReferenceTwin {
         if !e.has_sensor_terms() {
             return self.pressure_bar_g();
         }
-        let lagged = if e.sensor_lag_s > 0.0 { self.ext_state.sensed_bar_g } else { self.pressure_bar_g() };
-        e.sensor_offset_bar + e.sensor_gain * lagged
+        let lagged = if e[Mechanism::SensorLag] > 0.0 { self.ext_state.sensed_bar_g } else { self.pressure_bar_g() };
+        e[Mechanism::SensorOffset] + e[Mechanism::SensorGain] * lagged
     }
 
     /// One step with the optional mechanisms (f64, independent of the core's integer terms).
@@ -147,11 +152,12 @@ impl ReferenceTwin {
             es.pending_s = Some(0.0);
         }
         // The switch may fall inside this step, at `ts` seconds from its start.
-        let area_frac = |since: f64| if e.valve_lag_s > 0.0 { 1.0 - (-since / e.valve_lag_s).exp() } else { 1.0 };
+        let area_frac =
+            |since: f64| if e[Mechanism::ValveLag] > 0.0 { 1.0 - (-since / e[Mechanism::ValveLag]).exp() } else { 1.0 };
         let mut switch_at = None;
         if let Some(t) = es.pending_s {
-            if t + h >= e.transport_delay_s {
-                switch_at = Some((e.transport_delay_s - t).clamp(0.0, h));
+            if t + h >= e[Mechanism::TransportDelay] {
+                switch_at = Some((e[Mechanism::TransportDelay] - t).clamp(0.0, h));
                 es.pending_s = None;
             } else {
                 es.pending_s = Some(t + h);
@@ -173,13 +179,13 @@ impl ReferenceTwin {
 
         let s = self.state;
         let a = q.piston_area_m2;
-        let (x, v, z) = piston_step(&q, &s, h, e.progressive_spring);
+        let (x, v, z) = piston_step(&q, &s, h, e[Mechanism::ProgressiveSpring]);
         let dx = x - s.x;
 
         // Chamber energy balance: V dp = (k−1)(cp Ts m_in − cp T m_out + Q) dt − k p dV, with the
         // orifice flows at their upstream temperature.
-        let t_supply = e.supply_temperature_k();
-        let thermal = e.heat_transfer_s > 0.0;
+        let t_supply = e[Mechanism::GasTemperature];
+        let thermal = e[Mechanism::HeatTransfer] > 0.0;
         let t_gas = es.gas_k;
         let vol = q.dead_volume_m3 + a * s.x;
         let supply = q.supply.to_abs_pa();
@@ -200,13 +206,13 @@ impl ReferenceTwin {
                 continue;
             }
             let mut pu = if open { supply } else { P0 };
-            if open && e.regulator_droop_bar > 0.0 && s.p < supply {
+            if open && e[Mechanism::RegulatorDroop] > 0.0 && s.p < supply {
                 // Implicit supply sag pu = Ps − droop · m(pu)/m_ref: bisection on [p, Ps].
                 let (mut lo, mut hi) = (s.p, supply);
                 for _ in 0..50 {
                     let mid = 0.5 * (lo + hi);
                     let (m, _) = flow(mid, s.p, self.area_in, t_supply, t_gas);
-                    if mid - supply + e.regulator_droop_bar * 1e5 * (share * m).max(0.0) / m_ref <= 0.0 {
+                    if mid - supply + e[Mechanism::RegulatorDroop] * 1e5 * (share * m).max(0.0) / m_ref <= 0.0 {
                         lo = mid;
                     } else {
                         hi = mid;
@@ -220,10 +226,10 @@ impl ReferenceTwin {
             h_net += share * m * t;
         }
         let (m_leak, _) = flow(s.p, P0, self.area_leak, t_gas, t_gas);
-        let m_lam = e.laminar_leak_g_per_s * 1e-3 * (s.p - P0) / 7e5;
+        let m_lam = e[Mechanism::LaminarLeak] * 1e-3 * (s.p - P0) / 7e5;
         m_net -= m_leak + m_lam;
         h_net -= (m_leak + m_lam) * t_gas;
-        let heat = if thermal { s.p * (TEMPERATURE_K - t_gas) / (t_gas * e.heat_transfer_s) } else { 0.0 };
+        let heat = if thermal { s.p * (TEMPERATURE_K - t_gas) / (t_gas * e[Mechanism::HeatTransfer]) } else { 0.0 };
         let dp = (KAPPA * GAS_CONSTANT / vol * h_net + heat) * h - KAPPA * s.p / vol * a * dx;
         let p_new = (s.p + dp).max(0.0);
         if thermal {
@@ -232,9 +238,9 @@ impl ReferenceTwin {
             let rel = dp / s.p.max(1.0) + a * dx / vol - m_net * h / mass.max(1e-12);
             es.gas_k = (t_gas * (1.0 + rel)).clamp(50.0, 2000.0);
         }
-        if e.sensor_lag_s > 0.0 {
+        if e[Mechanism::SensorLag] > 0.0 {
             let target = p_new / 1e5 - 1.0;
-            es.sensed_bar_g = target + (es.sensed_bar_g - target) * (-h / e.sensor_lag_s).exp();
+            es.sensed_bar_g = target + (es.sensed_bar_g - target) * (-h / e[Mechanism::SensorLag]).exp();
         }
         self.state = ReferenceState { p: p_new, x, v, z };
     }

@@ -1,7 +1,7 @@
 //! Hidden-effect tests of the model-discrepancy audit (issue 9).
 //!
 //! A case draws a mechanism and a magnitude from its seed (uniformly over all ten mechanisms,
-//! magnitude uniform in [`Effect::plausible`]), a locomotive with the SPEC §5 spread, and
+//! magnitude uniform in [`Mechanism::plausible`]), a locomotive with the SPEC §5 spread, and
 //! [`RELEASES_PER_CASE`] noisy releases from the f64 plant (σ = 0.01 bar, 12-bit ADC); the audit
 //! must name the mechanism, estimate its magnitude within 20 % and cut the NMSE at least 5×.
 //! A null case (clean plant) must give `none`.
@@ -11,11 +11,11 @@
 //! `cargo test -p host-sim --test audit -- --ignored` (≈ 3 min on 2 cores), and the full one is
 //! `host-sim audit-sweep --cases 200 --pairs 40 --null-cases 20` (bench/audit_sweep.md).
 
+use pbm::mechanism::Mechanism;
 use pbm_lab::audit::{audit, audit_dir, AuditOptions};
 use pbm_lab::audit_plot::write_outputs;
 use pbm_lab::audit_sweep::{check_case, draw_case, draw_case_with, synth_data, RELEASES_PER_CASE};
 use pbm_lab::generate::{generate, GenerateArgs, SplitMode};
-use pbm_lab::plant::Effect;
 
 fn first_seed(default: u64) -> u64 {
     std::env::var("AUDIT_TEST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(default)
@@ -24,7 +24,7 @@ fn first_seed(default: u64) -> u64 {
 fn run_seeds(seeds: impl Iterator<Item = u64>, count: usize) {
     let mut misses = Vec::new();
     for seed in seeds {
-        let case = draw_case_with(seed, &Effect::ALL, count, None).expect("case");
+        let case = draw_case_with(seed, &Mechanism::ALL, count, None).expect("case");
         let r = check_case(&case).expect("audit runs");
         let line = r.line(seed);
         eprintln!("{line}");
@@ -112,5 +112,5 @@ fn larger_hidden_effect_sweep() {
         assert_eq!(audit(&data, AuditOptions::default()).expect("audit").cause, "none");
     }
     // draw_case is the single-mechanism shorthand.
-    assert_eq!(draw_case(s, &Effect::ALL).expect("case").truth.len(), 1);
+    assert_eq!(draw_case(s, &Mechanism::ALL).expect("case").truth.len(), 1);
 }

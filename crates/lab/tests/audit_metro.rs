@@ -1,7 +1,7 @@
 //! The audit on real pneumatic data (SPEC §8, MetroPT-3 head) and the reader's errors.
 
+use pbm::mechanism::Mechanism;
 use pbm_lab::metro::{audit_metro_file, read_metro, write_metro_outputs};
-use pbm_lab::plant::Effect;
 use std::path::Path;
 
 const METRO: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/data/metropt3_head.csv");
@@ -51,7 +51,7 @@ fn metro_reader_reports_file_and_line() {
 
 use pbm_lab::metro::{
     audit_metro, metro_params, simulate, simulate_reference, sweep_summary, synthetic_rows, synthetic_sweep,
-    MetroMechanism, SYNTHETIC_BASE_U, SYNTHETIC_ROWS, SYNTHETIC_SIGMA_BAR,
+    SYNTHETIC_BASE_U, SYNTHETIC_ROWS, SYNTHETIC_SIGMA_BAR,
 };
 
 /// The audit's model is the core's fixed-point reservoir; it must agree with the `f64` reference
@@ -60,15 +60,15 @@ use pbm_lab::metro::{
 fn fixed_point_reservoir_matches_f64_reference() {
     let u = SYNTHETIC_BASE_U;
     let rows = synthetic_rows(&metro_params(&u, &[]), SYNTHETIC_ROWS, 0.0, 1);
-    let cases: Vec<Vec<(Effect, f64)>> = vec![
+    let cases: Vec<Vec<(Mechanism, f64)>> = vec![
         vec![],
-        vec![(Effect::HeatTransfer, 20.0)],
-        vec![(Effect::TransportDelay, 9.3)],
-        vec![(Effect::ValveLag, 15.0)],
-        vec![(Effect::SensorLag, 12.0)],
-        vec![(Effect::SensorOffset, -0.05), (Effect::SensorGain, 1.04)],
-        vec![(Effect::LaminarLeak, 0.8)],
-        vec![(Effect::HeatTransfer, 20.0), (Effect::TransportDelay, 9.3)],
+        vec![(Mechanism::HeatTransfer, 20.0)],
+        vec![(Mechanism::TransportDelay, 9.3)],
+        vec![(Mechanism::ValveLag, 15.0)],
+        vec![(Mechanism::SensorLag, 12.0)],
+        vec![(Mechanism::SensorOffset, -0.05), (Mechanism::SensorGain, 1.04)],
+        vec![(Mechanism::LaminarLeak, 0.8)],
+        vec![(Mechanism::HeatTransfer, 20.0), (Mechanism::TransportDelay, 9.3)],
     ];
     for effects in cases {
         let params = metro_params(&u, &effects);
@@ -84,18 +84,18 @@ fn fixed_point_reservoir_matches_f64_reference() {
 /// Hidden effects in synthetic records from the `f64` reference (not the model the audit fits),
 /// mechanism and magnitude drawn from the seed: an identifiable mechanism must be named with its
 /// magnitude within 20 % and cut the NMSE at least 5×; one that is collinear with the base
-/// (transducer offset or gain, laminar leak: see `Effect::identifiable`) may be missed but
+/// (transducer offset or gain, laminar leak: see `pbm::mechanism::Scope::identifiable`) may be missed but
 /// never mistaken for another; a clean record gives `none`.
 #[test]
 fn metro_audit_finds_hidden_effects() {
     let cases = synthetic_sweep(16, 500).expect("sweep runs");
     eprint!("{}", sweep_summary(&cases));
     assert!(
-        cases.iter().filter(|c| c.truth.0.metro_identifiable()).count() >= 6,
+        cases.iter().filter(|c| pbm_lab::metro::metro_identifiable(c.truth.0)).count() >= 6,
         "the draw covers the identifiable pool"
     );
     for c in &cases {
-        if c.truth.0.metro_identifiable() {
+        if pbm_lab::metro::metro_identifiable(c.truth.0) {
             assert!(c.hit(), "{c:?}");
         } else {
             assert!(!c.wrong_name(), "{c:?}");

@@ -1,11 +1,11 @@
 //! Each extension term of the fixed-point core twin against the same mechanism in the f64 plant
 //! (NMSE < 0.1 %, like the base model), and the base model's bits unchanged when all are off.
 
+use pbm::mechanism::Extensions;
+use pbm::mechanism::Mechanism;
 use pbm::metrics::nmse_pct;
-use pbm::params::Extensions;
 use pbm::{Twin, TwinParams};
 use pbm_lab::generate::simulate_plant;
-use pbm_lab::plant::Effect;
 use pbm_lab::simulate::{simulate, Engine};
 
 /// Step of the f64 plant here: 0.1 ms, 10× finer than `host-sim generate` uses (whose error at
@@ -20,15 +20,15 @@ fn pressures(engine: Engine, params: &TwinParams) -> Vec<f64> {
 }
 
 /// Representative magnitudes: the top of each plausible range (largest deviation from base).
-fn magnitudes(e: Effect) -> Vec<f64> {
-    e.plausible().iter().flat_map(|&(lo, hi)| [lo, hi]).collect()
+fn magnitudes(e: Mechanism) -> Vec<f64> {
+    e.descriptor().brake.plausible.iter().flat_map(|&(lo, hi)| [lo, hi]).collect()
 }
 
 #[test]
 fn every_core_term_matches_the_f64_plant() {
-    let cases: Vec<(Effect, f64)> =
-        Effect::ALL.iter().flat_map(|&e| magnitudes(e).into_iter().map(move |m| (e, m))).collect();
-    let results: Vec<(Effect, f64, f64, f64)> = std::thread::scope(|s| {
+    let cases: Vec<(Mechanism, f64)> =
+        Mechanism::ALL.iter().flat_map(|&e| magnitudes(e).into_iter().map(move |m| (e, m))).collect();
+    let results: Vec<(Mechanism, f64, f64, f64)> = std::thread::scope(|s| {
         let handles: Vec<_> = cases
             .chunks(cases.len().div_ceil(2))
             .map(|chunk| {
@@ -37,7 +37,7 @@ fn every_core_term_matches_the_f64_plant() {
                         .iter()
                         .map(|&(e, m)| {
                             let mut p = TwinParams::nominal();
-                            e.set(&mut p.ext, m);
+                            p.ext[e] = m;
                             let fixed = pressures(Engine::Fixed, &p);
                             let plant = pressures(Engine::F64, &p);
                             let base = pressures(Engine::Fixed, &TwinParams::nominal());
@@ -75,9 +75,9 @@ fn base_bits_unchanged_with_extensions_off() {
         .collect();
     assert!(rows.len() >= 5, "golden file has checkpoints");
     let mut variants = vec![TwinParams::nominal()];
-    for e in Effect::ALL {
+    for e in Mechanism::ALL {
         let mut p = TwinParams::nominal();
-        e.set(&mut p.ext, e.off_value());
+        p.ext[e] = e.off();
         assert_eq!(p.ext, Extensions::NONE, "{e} off value");
         variants.push(p);
     }

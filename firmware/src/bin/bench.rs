@@ -15,7 +15,7 @@ use cortex_m::peripheral::SYST;
 use pbm::classifier::diagnose;
 use pbm::estimator::{EstimatorConfig, ReleaseEstimator};
 use pbm::features::ReleaseFeatures;
-use pbm::params::Extensions;
+use pbm::mechanism::{Extensions, Mechanism};
 use pbm::pipeline::Pipeline;
 use pbm::reservoir::{Reservoir, ReservoirParams};
 use pbm::{AdcCounts, BarG, KelvinQ8, Meters, PressureQ24, Twin};
@@ -155,7 +155,7 @@ fn main() -> ! {
         compressor_g_per_s: 9.04,
         outlet: Meters::from_mm(0.563),
         discharge_coeff: 0.8,
-        ext: Extensions { heat_transfer_s: 20.3, transport_delay_s: 9.3, ..Extensions::NONE },
+        ext: Extensions::NONE.with(Mechanism::HeatTransfer, 20.3).with(Mechanism::TransportDelay, 9.3),
     };
     let Ok(mut reservoir) = Reservoir::new(&metro) else {
         println!("bench: reservoir parameters rejected");
