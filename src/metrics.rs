@@ -13,15 +13,40 @@ pub fn nmse_pct(measured: &[f64], model: &[f64]) -> Option<f64> {
     if measured.len() != model.len() {
         return None;
     }
-    let (mut sum, mut n) = (0.0, 0u32);
+    let mut acc = Nmse::new();
     for (&p, &q) in measured.iter().zip(model) {
+        acc.push(p, q);
+    }
+    acc.pct()
+}
+
+/// [`nmse_pct`] one sample at a time (a replay of any length in constant memory); the same
+/// sums in the same order, so the same result.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Nmse {
+    sum: f64,
+    n: u32,
+}
+
+impl Nmse {
+    /// No sample yet.
+    pub const fn new() -> Self {
+        Self { sum: 0.0, n: 0 }
+    }
+
+    /// Adds a measured gauge pressure `p` and the model's `q` (bar).
+    pub fn push(&mut self, p: f64, q: f64) {
         if p > NMSE_MIN_BAR_G {
             let e = (p - q) / p;
-            sum += e * e;
-            n += 1;
+            self.sum += e * e;
+            self.n = self.n.saturating_add(1);
         }
     }
-    (n > 0).then(|| 100.0 * libm::sqrt(sum / f64::from(n)))
+
+    /// The NMSE so far, %; `None` while no sample qualifies.
+    pub fn pct(&self) -> Option<f64> {
+        (self.n > 0).then(|| 100.0 * libm::sqrt(self.sum / f64::from(self.n)))
+    }
 }
 
 #[cfg(test)]

@@ -33,12 +33,11 @@ use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use pbm::can::{Decoder, Report};
 use pbm::mechanism::Mechanism;
 use pbm::{AdcCounts, FaultClass};
-use pbm_io::dataset::{read_manifest, trace_path, ManifestRow, MANIFEST, TRUTH};
-use pbm_io::trace::{read_trace, Samples};
+use pbm_io::dataset::{Dataset, TraceItem, MANIFEST, TRUTH};
 use pbm_lab::audit_sweep::{check_case, draw_case, CaseResult as AuditCase};
 use pbm_lab::estimate::{self, CaseResult as EstimateCase, Param};
-use pbm_lab::generate::{generate_with, GenerateArgs};
-use pbm_lab::replay::{replay_trace, summarise, ReplayItem};
+use pbm_lab::generate::{generate_with, GenerateOptions};
+use pbm_lab::replay::{replay_trace, summarise};
 use pbm_ml::evaluate::{accuracy_vs_time, score_all, stable_by, Score};
 use pbm_ml::nn::Mlp;
 use pbm_ml::train::{dataset_features, features_from_adc, train_all, Kind, TraceFeatures, Trained, SNAPSHOT_TIMES_S};
@@ -64,47 +63,41 @@ pub const REQUIRED_SECTIONS: [&str; 11] =
 /// These are the paper's published figures, shown beside this run's for comparison.
 pub const PAPER_REPORTED_PCT: [(&str, f64); 3] = [("paper_raw", 72.0), ("paper_residual", 81.2), ("paper_theta", 96.0)];
 
-/// Options of `host-sim demo`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct DemoArgs {
+/// Options of the demo run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DemoOptions {
     /// Seed of everything: data set, training, the hidden audit effect.
-    #[arg(long, default_value_t = DEFAULT_SEED)]
     pub seed: u64,
     /// Report directory (index.html, svg/, can/).
-    #[arg(long, default_value = "report")]
     pub out: PathBuf,
-    /// Data set directory [default: data/demo-fleet; with --quick: OUT/fleet].
-    #[arg(long)]
+    /// Data set directory (`None`: `data/demo-fleet`, or `OUT/fleet` when `quick`).
     pub data: Option<PathBuf>,
     /// Small, fast variant (40 + 10 traces per class) for tests.
-    #[arg(long)]
     pub quick: bool,
     /// Firmware cost report to include if present (read, not computed, and labelled so).
-    #[arg(long, default_value = "bench/firmware.md")]
     pub firmware_report: PathBuf,
     /// Test traces per class replayed with CAN logging.
-    #[arg(long, default_value_t = 2)]
     pub can_per_class: usize,
     /// Worker threads (0 = all cores).
-    #[arg(long, default_value_t = 0)]
     pub threads: usize,
 }
 
-impl DemoArgs {
-    /// The command-line defaults (for tests and other tools).
-    pub fn defaults() -> Self {
-        #[derive(clap::Parser)]
-        struct Wrapper {
-            #[command(flatten)]
-            args: DemoArgs,
-        }
-        match <Wrapper as clap::Parser>::try_parse_from(["demo"]) {
-            Ok(w) => w.args,
-            // Only a change that breaks the defaults themselves can get here.
-            Err(e) => unreachable!("DemoArgs defaults do not parse: {e}"),
+impl Default for DemoOptions {
+    /// The full demo into `report/`, seed [`DEFAULT_SEED`].
+    fn default() -> Self {
+        Self {
+            seed: DEFAULT_SEED,
+            out: PathBuf::from("report"),
+            data: None,
+            quick: false,
+            firmware_report: PathBuf::from("bench/firmware.md"),
+            can_per_class: 2,
+            threads: 0,
         }
     }
+}
 
+impl DemoOptions {
     /// The data set directory.
     pub fn data_dir(&self) -> PathBuf {
         match (&self.data, self.quick) {
@@ -115,8 +108,8 @@ impl DemoArgs {
     }
 
     /// The generator options of the demo's data set.
-    pub fn generate_args(&self) -> GenerateArgs {
-        let mut g = GenerateArgs::with_defaults(self.data_dir());
+    pub fn generate_options(&self) -> GenerateOptions {
+        let mut g = GenerateOptions::new(self.data_dir());
         g.seed = self.seed;
         g.threads = self.threads;
         if self.quick {
@@ -128,7 +121,7 @@ impl DemoArgs {
 }
 
 /// The stamp file's text for a data set generated with `g`.
-pub fn stamp_text(g: &GenerateArgs) -> String {
+pub fn stamp_text(g: &GenerateOptions) -> String {
     format!(
         "host-sim demo data set\nversion {}\nseed {}\nlocomotives {}\nper_class {}\ntest_per_class {}\nclasses {}\n\
          split {:?}\ntest_locomotives {}\neffects {:?}\n",
@@ -137,10 +130,10 @@ pub fn stamp_text(g: &GenerateArgs) -> String {
         g.locomotives,
         g.per_class,
         g.test_per_class,
-        g.classes.join(","),
+        g.classes.iter().map(|c| c.label()).collect::<Vec<_>>().join(","),
         g.split,
         g.test_locomotives,
-        g.effects
+        g.effects.active().map(|(m, v)| format!("{m}={v}")).collect::<Vec<_>>()
     )
 }
 
@@ -231,14 +224,18 @@ pub struct DataStage {
     pub test: Vec<TraceFeatures>,
 }
 
-fn data_stage(g: &GenerateArgs) -> Result<DataStage> {
+fn data_stage(g: &GenerateOptions) -> Result<DataStage> {
     let dir = g.out.clone();
     let stamp_path = dir.join(STAMP);
     let want = stamp_text(g);
     let stamp = std::fs::read_to_string(&stamp_path).ok();
     let complete = dir.join(MANIFEST).is_file() && dir.join(TRUTH).is_file();
     let (features, reused) = if stamp.as_deref() == Some(want.as_str()) && complete {
-        (dataset_features(&dir, None)?, true)
+        let (features, skipped) = dataset_features(&dir, None)?;
+        if !skipped.is_empty() {
+            bail!("the demo's own data set {} is damaged; remove it to regenerate\n{skipped}", dir.display());
+        }
+        (features, true)
     } else {
         let non_empty = std::fs::read_dir(&dir).map(|mut d| d.next().is_some()).unwrap_or(false);
         if non_empty && stamp.is_none() {
@@ -358,18 +355,13 @@ pub struct ReleaseCurve {
 }
 
 /// The first `per_class` test traces of every class present, in class order.
-pub fn sample_items(dir: &Path, per_class: usize) -> Result<Vec<ReplayItem>> {
-    let rows = read_manifest(dir)?;
+pub fn sample_items(dir: &Path, per_class: usize) -> Result<Vec<TraceItem>> {
+    let data = Dataset::open(dir)?;
     let mut out = Vec::new();
     for class in FaultClass::ALL {
-        let picked: Vec<&ManifestRow> =
-            rows.iter().filter(|r| r.split == "test" && r.label == class.label()).take(per_class).collect();
-        out.extend(picked.into_iter().map(|r| ReplayItem {
-            path: trace_path(dir, r),
-            name: r.file.clone(),
-            label: Some(r.label.clone()),
-            locomotive: Some(r.locomotive.clone()),
-        }));
+        for r in data.rows().iter().filter(|r| r.split == "test" && r.label == class.label()).take(per_class) {
+            out.push(TraceItem::from_row(&data, r)?);
+        }
     }
     Ok(out)
 }
@@ -377,7 +369,7 @@ pub fn sample_items(dir: &Path, per_class: usize) -> Result<Vec<ReplayItem>> {
 /// Decodes a candump log with the core decoder; reports are attributed to `items` in order,
 /// a new trace starting at every gap of more than half [`pbm_lab::replay::TRACE_GAP_US`]
 /// (where the decoder's counter history is reset, as the log's sender restarts).
-pub fn decode_log(log: &Path, items: &[ReplayItem]) -> Result<CanStage> {
+pub fn decode_log(log: &Path, items: &[TraceItem]) -> Result<CanStage> {
     let file = std::fs::File::open(log).with_context(|| format!("cannot open {}", log.display()))?;
     let mut st = CanStage { log: log.to_owned(), ..CanStage::default() };
     let mut decoder = Decoder::new();
@@ -421,8 +413,8 @@ pub fn decode_log(log: &Path, items: &[ReplayItem]) -> Result<CanStage> {
     Ok(st)
 }
 
-fn release_curve(item: &ReplayItem) -> Result<ReleaseCurve> {
-    let trace = read_trace(&item.path)?;
+fn release_curve(item: &TraceItem) -> Result<ReleaseCurve> {
+    let trace = pbm_io::trace::read_trace(&item.path)?;
     let samples = replay_trace(&trace)?;
     let label = item.label.clone().unwrap_or_default();
     let locomotive = item.locomotive.clone().unwrap_or_default();
@@ -443,14 +435,17 @@ fn can_stage(dir: &Path, out: &Path, per_class: usize) -> Result<CanStage> {
     let can_dir = out.join("can");
     std::fs::create_dir_all(&can_dir).with_context(|| format!("cannot create {}", can_dir.display()))?;
     let log = can_dir.join("replay.log");
-    let frames = pbm_lab::replay::write_replay_can_log(&log, &items)?;
+    let (frames, skipped) = pbm_lab::replay::replay_to_can_log(&log, &items)?;
+    if !skipped.is_empty() {
+        bail!("the demo's own traces could not be replayed\n{skipped}");
+    }
     let mut st = decode_log(&log, &items)?;
     st.traces = items.len();
     if st.frames != frames {
         bail!("{}: wrote {frames} frames, read back {}", log.display(), st.frames);
     }
     // Release curves: the first replayed trace of each class.
-    let mut firsts: Vec<&ReplayItem> = Vec::new();
+    let mut firsts: Vec<&TraceItem> = Vec::new();
     for it in &items {
         if !firsts.iter().any(|f| f.label == it.label) {
             firsts.push(it);
@@ -464,16 +459,13 @@ fn can_stage(dir: &Path, out: &Path, per_class: usize) -> Result<CanStage> {
 // Stage 5: estimator
 
 fn estimator_stage(dir: &Path, test: &[TraceFeatures]) -> Result<Vec<EstimateCase>> {
+    let data = Dataset::open(dir)?;
     let truth = estimate::read_truth(dir)?;
     test.par_iter()
         .map(|f| {
             let t = truth.get(&f.row.file).with_context(|| format!("{}: no row in {TRUTH}", f.row.file))?;
-            let trace = read_trace(&trace_path(dir, &f.row))?;
-            let adc: Vec<u16> = match &trace.samples {
-                Samples::Adc(v) => v.clone(),
-                Samples::Bar(v) => v.iter().map(|&p| pbm::sensor::adc_from_bar(pbm::BarG(p)).0).collect(),
-            };
-            estimate::evaluate(t.clone(), &adc, 0)
+            let trace = data.read_trace(&f.row)?;
+            estimate::evaluate(t.clone(), &trace.adc_counts(), 0)
         })
         .collect()
 }
@@ -515,7 +507,7 @@ fn command_output(cmd: &str, args: &[&str]) -> Option<String> {
     out.status.success().then(|| String::from_utf8_lossy(&out.stdout).trim().to_owned()).filter(|s| !s.is_empty())
 }
 
-fn run_info(a: &DemoArgs) -> RunInfo {
+fn run_info(a: &DemoOptions) -> RunInfo {
     let git = command_output("git", &["rev-parse", "HEAD"]).map(|c| {
         let dirty = command_output("git", &["status", "--porcelain", "--untracked-files=no"]).is_some();
         if dirty {
@@ -547,7 +539,7 @@ pub struct DemoResults {
     /// Provenance.
     pub info: RunInfo,
     /// Generator options of the data set.
-    pub generate: GenerateArgs,
+    pub generate: GenerateOptions,
     /// Data.
     pub data: DataStage,
     /// Trained models.
@@ -1270,8 +1262,8 @@ pub fn summary_text(r: &DemoResults, report: &Path) -> String {
     s
 }
 
-/// `host-sim demo`.
-pub fn run(a: &DemoArgs) -> Result<()> {
+/// The main job: every stage, the report written to `a.out`.
+pub fn run(a: &DemoOptions) -> Result<()> {
     if a.threads > 0 {
         let pool =
             rayon::ThreadPoolBuilder::new().num_threads(a.threads).build().context("cannot start worker threads")?;
@@ -1281,10 +1273,10 @@ pub fn run(a: &DemoArgs) -> Result<()> {
     }
 }
 
-fn run_in_pool(a: &DemoArgs) -> Result<()> {
+fn run_in_pool(a: &DemoOptions) -> Result<()> {
     let start = Instant::now();
     let info = run_info(a);
-    let g = a.generate_args();
+    let g = a.generate_options();
     let mut p = Progress::new(6);
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;
 

@@ -3,7 +3,7 @@
 //! `#[ignore]`d here (≈ 15–35 s, test profile = opt-level 3): `cargo test -p host-sim --test
 //! demo_report -- --ignored`.
 
-use pbm_demo::demo::{stamp_text, DemoArgs, REQUIRED_SECTIONS};
+use pbm_demo::demo::{stamp_text, DemoOptions, REQUIRED_SECTIONS};
 use pbm_report::report_html::{check, markdown_blocks, render, svg_element, Block, Cell, Page, Section, Table};
 use plotters::prelude::*;
 
@@ -165,22 +165,22 @@ fn firmware_markdown_becomes_tables_and_paragraphs() {
 
 #[test]
 fn demo_defaults_and_the_data_stamp() {
-    let a = DemoArgs::defaults();
+    let a = DemoOptions::default();
     assert_eq!(a.seed, pbm_demo::demo::DEFAULT_SEED);
     assert_eq!(a.data_dir(), std::path::PathBuf::from("data/demo-fleet"));
-    let g = a.generate_args();
+    let g = a.generate_options();
     // The paper's protocol (SPEC §6): 5 × 1100 + 5 × 50 traces, six locomotives.
     assert_eq!((g.per_class, g.test_per_class, g.locomotives, g.classes.len()), (1100, 50, 6, 5));
     assert_eq!(g.seed, a.seed);
-    let quick = DemoArgs { quick: true, out: "target/x".into(), ..a.clone() };
+    let quick = DemoOptions { quick: true, out: "target/x".into(), ..a.clone() };
     assert_eq!(quick.data_dir(), std::path::PathBuf::from("target/x/fleet"));
-    assert!(quick.generate_args().per_class < 100);
+    assert!(quick.generate_options().per_class < 100);
     // The stamp changes with anything that changes the data.
     let s = stamp_text(&g);
     assert!(s.contains(&format!("seed {}", a.seed)) && s.contains(env!("CARGO_PKG_VERSION")));
-    let other_seed = DemoArgs { seed: a.seed + 1, ..a.clone() }.generate_args();
+    let other_seed = DemoOptions { seed: a.seed + 1, ..a.clone() }.generate_options();
     assert_ne!(stamp_text(&other_seed), s);
-    assert_ne!(stamp_text(&quick.generate_args()), s);
+    assert_ne!(stamp_text(&quick.generate_options()), s);
 }
 
 /// The whole quick demo into a temporary directory: the page passes its check, names the seed,
@@ -189,14 +189,14 @@ fn demo_defaults_and_the_data_stamp() {
 #[ignore = "runs the quick demo (≈ 15–35 s); cargo test -p host-sim --test demo_report -- --ignored"]
 fn quick_demo_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
-    let a = DemoArgs { quick: true, out: dir.path().join("report"), ..DemoArgs::defaults() };
+    let a = DemoOptions { quick: true, out: dir.path().join("report"), ..DemoOptions::default() };
     pbm_demo::demo::run(&a).unwrap();
     let html = std::fs::read_to_string(a.out.join("index.html")).unwrap();
     let found = check(&html, &REQUIRED_SECTIONS).unwrap();
     assert!(found.svgs >= 12 && found.tables >= 14, "{found:?}");
     assert!(html.contains(&format!("seed {}", a.seed)));
     let stamp = std::fs::read_to_string(a.data_dir().join(pbm_demo::demo::STAMP)).unwrap();
-    assert_eq!(stamp, stamp_text(&a.generate_args()));
+    assert_eq!(stamp, stamp_text(&a.generate_options()));
     pbm_demo::demo::run(&a).unwrap();
     let html = std::fs::read_to_string(a.out.join("index.html")).unwrap();
     assert!(html.contains("reused: its stamp matched"));

@@ -1,21 +1,28 @@
 //! Data sets of SPEC §7: a directory with `manifest.csv` (`file,label,locomotive,split`) and
 //! the traces it names (paths relative to the directory). Generated sets also carry
-//! `truth.csv`, the ground-truth parameters of every trace (see [`pbm_lab::generate`]).
+//! `truth.csv`, the ground-truth parameters of every trace.
+//!
+//! [`Dataset`] is the one way the host tools reach a data set's traces: a manifest path must be
+//! relative without `..`, must stay inside the data set once symbolic links are resolved, and
+//! must be a regular file; anything else is a [`FileError`] for that trace alone.
 
-use std::fmt;
-use std::path::{Component, Path, PathBuf};
+use crate::error::{FileError, Skipped};
+use crate::files::{check_relative, ensure_inside};
+use crate::table::{read_rows_checked, CsvFile};
+use crate::trace::{Trace, TraceReader};
+use serde::{Deserialize, Serialize};
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
 
 /// File name of the manifest inside a data set directory.
 pub const MANIFEST: &str = "manifest.csv";
 /// File name of the ground-truth side file inside a generated data set directory.
 pub const TRUTH: &str = "truth.csv";
-/// The manifest header, exactly (SPEC §7).
-pub const MANIFEST_HEADER: &str = "file,label,locomotive,split";
-/// Largest manifest accepted, bytes.
-pub const MAX_MANIFEST_BYTES: u64 = 64 << 20;
+/// The manifest's columns, exactly and in this order (SPEC §7).
+pub const MANIFEST_COLUMNS: [&str; 4] = ["file", "label", "locomotive", "split"];
 
 /// One manifest row.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
 pub struct ManifestRow {
     /// Trace path relative to the data set directory.
     pub file: String,
@@ -27,106 +34,196 @@ pub struct ManifestRow {
     pub split: String,
 }
 
-/// A manifest problem: line (1-based, 0 = whole file) and message.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ManifestError {
-    /// The manifest path.
-    pub file: String,
-    /// 1-based line, 0 for the whole file.
-    pub line: usize,
-    /// What is wrong.
-    pub message: String,
-}
-
-impl fmt::Display for ManifestError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.line == 0 {
-            write!(f, "{}: {}", self.file, self.message)
-        } else {
-            write!(f, "{}:{}: {}", self.file, self.line, self.message)
-        }
-    }
-}
-
-impl std::error::Error for ManifestError {}
-
-/// Reads `DIR/manifest.csv`.
-pub fn read_manifest(dir: &Path) -> Result<Vec<ManifestRow>, ManifestError> {
+/// Reads `DIR/manifest.csv`; a malformed manifest is an error naming its line.
+pub fn read_manifest(dir: &Path) -> Result<Vec<ManifestRow>, FileError> {
     let path = dir.join(MANIFEST);
     let name = path.display().to_string();
-    let err = |line: usize, message: String| ManifestError { file: name.clone(), line, message };
-    let meta = std::fs::metadata(&path).map_err(|e| err(0, format!("cannot read: {e}")))?;
-    if meta.len() > MAX_MANIFEST_BYTES {
-        return Err(err(0, format!("larger than the {MAX_MANIFEST_BYTES}-byte limit")));
-    }
-    let bytes = std::fs::read(&path).map_err(|e| err(0, format!("cannot read: {e}")))?;
-    let text = String::from_utf8(bytes).map_err(|_| err(0, "not valid UTF-8".to_owned()))?;
-    parse_manifest(&name, &text)
+    let file = crate::files::open_regular(&path)?;
+    parse_manifest(&name, BufReader::new(file))
 }
 
 /// Parses manifest text; `name` is used in errors.
-pub fn parse_manifest(name: &str, text: &str) -> Result<Vec<ManifestRow>, ManifestError> {
-    let err = |line: usize, message: String| ManifestError { file: name.to_owned(), line, message };
-    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let mut rows = Vec::new();
-    let mut seen_header = false;
-    for (index, raw) in text.split('\n').enumerate() {
-        let line_no = index + 1;
-        let line = raw.strip_suffix('\r').unwrap_or(raw).trim();
-        if line.is_empty() {
-            continue;
+pub fn parse_manifest(name: &str, text: impl std::io::BufRead) -> Result<Vec<ManifestRow>, FileError> {
+    let rows: Vec<(usize, ManifestRow)> = read_rows_checked(name, text, |header| {
+        if header.iter().eq(MANIFEST_COLUMNS) {
+            Ok(())
+        } else {
+            Err(format!("header must be `{}`", MANIFEST_COLUMNS.join(",")))
         }
-        if !seen_header {
-            let names: Vec<&str> = line.split(',').map(str::trim).collect();
-            if names.join(",") != MANIFEST_HEADER {
-                return Err(err(line_no, format!("header must be `{MANIFEST_HEADER}`")));
+    })?;
+    rows.into_iter()
+        .map(|(line, r)| {
+            check_relative(&r.file).map_err(|m| FileError::new(name, line, m))?;
+            if r.label.is_empty() || r.locomotive.is_empty() || r.split.is_empty() {
+                return Err(FileError::new(name, line, "empty label, locomotive or split"));
             }
-            seen_header = true;
+            Ok(r)
+        })
+        .collect()
+}
+
+/// Writes `rows` as a manifest (fields quoted where needed).
+pub fn write_manifest(path: &Path, rows: &[ManifestRow]) -> anyhow::Result<()> {
+    let mut f = CsvFile::create(path)?;
+    f.record(MANIFEST_COLUMNS)?;
+    for r in rows {
+        f.record([&r.file, &r.label, &r.locomotive, &r.split])?;
+    }
+    f.finish()
+}
+
+/// An opened data set: its directory and manifest.
+#[derive(Debug, Clone)]
+pub struct Dataset {
+    dir: PathBuf,
+    root: PathBuf,
+    rows: Vec<ManifestRow>,
+}
+
+impl Dataset {
+    /// Reads the manifest of the data set in `dir`.
+    pub fn open(dir: &Path) -> Result<Self, FileError> {
+        let root =
+            std::fs::canonicalize(dir).map_err(|e| FileError::new(dir.display(), 0, format!("cannot read: {e}")))?;
+        if !root.is_dir() {
+            return Err(FileError::new(dir.display(), 0, "not a directory"));
+        }
+        Ok(Self { dir: dir.to_owned(), rows: read_manifest(dir)?, root })
+    }
+
+    /// The directory as given.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// The manifest rows in file order.
+    pub fn rows(&self) -> &[ManifestRow] {
+        &self.rows
+    }
+
+    /// Whether `dir` holds a manifest (is a data set rather than a trace or another directory).
+    pub fn is_dataset(dir: &Path) -> bool {
+        dir.join(MANIFEST).is_file()
+    }
+
+    /// The path of a row's trace, refused if it leaves the data set (symbolic links resolved)
+    /// or does not exist.
+    pub fn trace_path(&self, row: &ManifestRow) -> Result<PathBuf, FileError> {
+        let path = self.dir.join(&row.file);
+        ensure_inside(&self.root, &row.file, &path)?;
+        Ok(path)
+    }
+
+    /// Opens a row's trace for streaming.
+    pub fn open_trace(&self, row: &ManifestRow) -> Result<TraceReader<BufReader<std::fs::File>>, FileError> {
+        let path = self.trace_path(row)?;
+        TraceReader::open(&path).map_err(FileError::from)
+    }
+
+    /// Reads a row's whole trace.
+    pub fn read_trace(&self, row: &ManifestRow) -> Result<Trace, FileError> {
+        let path = self.trace_path(row)?;
+        crate::trace::read_trace(&path).map_err(FileError::from)
+    }
+}
+
+/// One trace to work on: where it is, its name for outputs and messages, what the manifest
+/// says of it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct TraceItem {
+    /// Path of the trace file (inside its data set, if it has one).
+    pub path: PathBuf,
+    /// Name used in summaries and for output files (the relative path in a data set).
+    pub name: String,
+    /// Label from the manifest, if any.
+    pub label: Option<String>,
+    /// Locomotive from the manifest, if any.
+    pub locomotive: Option<String>,
+}
+
+impl TraceItem {
+    /// The item of a manifest row whose trace passes the data set's checks.
+    pub fn from_row(data: &Dataset, row: &ManifestRow) -> Result<Self, FileError> {
+        Ok(Self {
+            path: data.trace_path(row)?,
+            name: row.file.clone(),
+            label: Some(row.label.clone()),
+            locomotive: Some(row.locomotive.clone()),
+        })
+    }
+}
+
+/// Which traces of a data set to take.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct Selection {
+    /// Only this split (`train`, `test`); `None`: all.
+    pub split: Option<String>,
+    /// At most this many traces per label, in manifest order (0 = all).
+    pub per_label: usize,
+}
+
+/// The traces under `path`: the file itself, or the selected rows of the data set in the
+/// directory `path`. Rows whose trace is refused (a path leaving the data set, a missing or
+/// special file) come back as skipped.
+pub fn select(path: &Path, selection: &Selection) -> anyhow::Result<(Vec<TraceItem>, Skipped)> {
+    let mut skipped = Skipped::none();
+    if !path.is_dir() {
+        let name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+        return Ok((vec![TraceItem { path: path.to_owned(), name, label: None, locomotive: None }], skipped));
+    }
+    if !Dataset::is_dataset(path) {
+        anyhow::bail!("{} is a directory without {MANIFEST}", path.display());
+    }
+    let data = Dataset::open(path)?;
+    let mut per_label = std::collections::HashMap::<&str, usize>::new();
+    let mut items = Vec::new();
+    for row in data.rows() {
+        if selection.split.as_deref().is_some_and(|s| row.split != s) {
             continue;
         }
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        let [file, label, locomotive, split] = fields.as_slice() else {
-            return Err(err(line_no, format!("expected 4 columns, found {}", fields.len())));
-        };
-        check_relative(file).map_err(|m| err(line_no, m))?;
-        if label.is_empty() || locomotive.is_empty() || split.is_empty() {
-            return Err(err(line_no, "empty label, locomotive or split".to_owned()));
+        let n = per_label.entry(&row.label).or_default();
+        *n += 1;
+        if selection.per_label != 0 && *n > selection.per_label {
+            continue;
         }
-        rows.push(ManifestRow {
-            file: (*file).to_owned(),
-            label: (*label).to_owned(),
-            locomotive: (*locomotive).to_owned(),
-            split: (*split).to_owned(),
-        });
+        match TraceItem::from_row(&data, row) {
+            Ok(item) => items.push(item),
+            Err(e) => skipped.push(e),
+        }
     }
-    if !seen_header {
-        return Err(err(0, format!("empty manifest: expected header `{MANIFEST_HEADER}`")));
-    }
-    Ok(rows)
+    Ok((items, skipped))
 }
 
-/// A manifest file path must stay inside the data set: relative, no `..`.
-fn check_relative(file: &str) -> Result<(), String> {
-    let p = Path::new(file);
-    if file.is_empty() {
-        return Err("empty file name".to_owned());
-    }
-    if p.components().any(|c| !matches!(c, Component::Normal(_) | Component::CurDir)) {
-        return Err(format!("file `{file}` must be a relative path inside the data set (no `..`, not absolute)"));
-    }
-    Ok(())
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-/// Path of a manifest row's trace.
-pub fn trace_path(dir: &Path, row: &ManifestRow) -> PathBuf {
-    dir.join(&row.file)
-}
-
-/// Writes a manifest.
-pub fn write_manifest(w: &mut impl std::io::Write, rows: &[ManifestRow]) -> std::io::Result<()> {
-    writeln!(w, "{MANIFEST_HEADER}")?;
-    for r in rows {
-        writeln!(w, "{},{},{},{}", r.file, r.label, r.locomotive, r.split)?;
+    #[test]
+    fn manifest_errors_name_the_line() {
+        let ok =
+            parse_manifest("m.csv", "file,label,locomotive,split\n\na.csv,\"normal, really\",l1,test\n".as_bytes())
+                .unwrap();
+        assert_eq!(ok[0].label, "normal, really");
+        let e = parse_manifest("m.csv", "file,label,split\n".as_bytes()).unwrap_err();
+        assert_eq!(e.to_string(), "m.csv:1: header must be `file,label,locomotive,split`");
+        let e = parse_manifest("m.csv", "file,label,locomotive,split\na.csv,x,y\n".as_bytes()).unwrap_err();
+        assert_eq!(e.line, 2);
+        let e = parse_manifest("m.csv", "file,label,locomotive,split\n\n../a.csv,x,y,z\n".as_bytes()).unwrap_err();
+        assert!(e.to_string().starts_with("m.csv:3: file `../a.csv` must be a relative path"), "{e}");
+        let e = parse_manifest("m.csv", "file,label,locomotive,split\n/etc/passwd,x,y,z\n".as_bytes()).unwrap_err();
+        assert_eq!(e.line, 2);
     }
-    Ok(())
+
+    #[test]
+    fn manifest_round_trips_fields_with_commas_and_quotes() {
+        let dir = tempfile::tempdir().unwrap();
+        let rows = vec![ManifestRow {
+            file: "t,1.csv".into(),
+            label: "a \"b\"".into(),
+            locomotive: "loco,7".into(),
+            split: "test".into(),
+        }];
+        write_manifest(&dir.path().join(MANIFEST), &rows).unwrap();
+        assert_eq!(read_manifest(dir.path()).unwrap(), rows);
+    }
 }

@@ -11,4 +11,9 @@
 pub mod can_bus;
 pub mod can_log;
 pub mod dataset;
+pub mod error;
+pub mod files;
+pub mod lines;
+pub mod metro;
+pub mod table;
 pub mod trace;

@@ -72,11 +72,10 @@
 use anyhow::{bail, Context, Result};
 use pbm::mechanism::Extensions;
 use pbm::mechanism::Mechanism;
-use pbm::sensor::bar_from_adc;
 use pbm::twin::SAMPLE_PERIOD_S;
-use pbm::{AdcCounts, BarG, Meters, Twin, TwinParams};
-use pbm_io::dataset::{read_manifest, trace_path};
-use pbm_io::trace::{read_trace, Samples};
+use pbm::{BarG, Meters, Twin, TwinParams};
+use pbm_io::dataset::{Dataset, ManifestRow};
+use pbm_io::error::{FileError, Skipped};
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -179,7 +178,7 @@ pub fn config_from_meta(meta: &[(String, String)]) -> Result<TwinParams> {
 pub fn data_from_traces(source: &str, traces: Vec<(String, TwinParams, Vec<f64>)>) -> Result<AuditData> {
     let mut groups: Vec<Group> = Vec::new();
     for (file, config, p) in traces {
-        if p.len() < 200 {
+        if p.len() < MIN_SAMPLES {
             bail!("{file}: only {} samples; the audit needs ≥ 2 s at 100 Hz", p.len());
         }
         let sigma = noise_sigma(&p);
@@ -215,25 +214,42 @@ pub fn data_from_traces(source: &str, traces: Vec<(String, TwinParams, Vec<f64>)
     Ok(AuditData { source: source.to_owned(), groups })
 }
 
-/// Reads a SPEC §7 data set for the audit.
-pub fn load_dataset(dir: &Path) -> Result<AuditData> {
-    let rows = read_manifest(dir)?;
+/// Fewest samples of a release the audit uses (2 s at 100 Hz).
+pub const MIN_SAMPLES: usize = 200;
+
+/// Reads a SPEC §7 data set for the audit; a trace that cannot be used (unreadable, not at
+/// 100 Hz, not starting at the release command, shorter than [`MIN_SAMPLES`], a documented
+/// configuration out of range) is skipped with its reason, and the others are audited.
+pub fn load_dataset(dir: &Path) -> Result<(AuditData, Skipped)> {
+    let data = Dataset::open(dir)?;
     let mut traces = Vec::new();
-    for row in &rows {
-        let path = trace_path(dir, row);
-        let tr = read_trace(&path)?;
-        tr.check_sample_period(SAMPLE_PERIOD_S, 1e-3)?;
-        if tr.t_s.first().is_some_and(|t| t.abs() > 1e-3) {
-            bail!("{}: a release trace must start at t = 0 (the release command)", path.display());
+    let mut skipped = Skipped::none();
+    for row in data.rows() {
+        match audit_trace(&data, row) {
+            Ok((config, p)) => traces.push((row.file.clone(), config, p)),
+            Err(e) => skipped.push(e),
         }
-        let p: Vec<f64> = match &tr.samples {
-            Samples::Bar(v) => v.clone(),
-            Samples::Adc(v) => v.iter().map(|&c| bar_from_adc(AdcCounts(c)).0).collect(),
-        };
-        let config = config_from_meta(&tr.metadata).with_context(|| path.display().to_string())?;
-        traces.push((row.file.clone(), config, p));
     }
-    data_from_traces(&dir.display().to_string(), traces)
+    if traces.is_empty() {
+        bail!("{}: no usable release to audit\n{skipped}", dir.display());
+    }
+    Ok((data_from_traces(&dir.display().to_string(), traces)?, skipped))
+}
+
+/// One data set trace as the audit uses it: its documented configuration and pressures.
+fn audit_trace(data: &Dataset, row: &ManifestRow) -> Result<(TwinParams, Vec<f64>), FileError> {
+    let tr = data.read_trace(row)?;
+    tr.check_sample_period(SAMPLE_PERIOD_S, 1e-3)?;
+    let name = &tr.source;
+    if tr.t_s.first().is_some_and(|t| t.abs() > 1e-3) {
+        return Err(FileError::new(name, 0, "a release trace must start at t = 0 (the release command)"));
+    }
+    if tr.t_s.len() < MIN_SAMPLES {
+        return Err(FileError::new(name, 0, format!("only {} samples; the audit needs ≥ 2 s at 100 Hz", tr.t_s.len())));
+    }
+    let p = tr.pressures_bar();
+    let config = config_from_meta(&tr.metadata).map_err(|e| FileError::new(name, 0, format!("{e:#}")))?;
+    Ok((config, p))
 }
 
 /// The brake described by base vector `u` (each in [0, 1]) around the documented `config`.
@@ -372,12 +388,74 @@ pub(crate) struct VerdictJson<'a> {
 }
 
 /// One candidate of [`VerdictJson::ranking`].
+#[derive(serde::Serialize)]
 pub(crate) struct RankingJson<'a> {
     pub name: &'a str,
     pub magnitudes: Vec<f64>,
     pub delta_bic: f64,
     pub rss_ratio: f64,
     pub nmse_pct: f64,
+}
+
+/// One named mechanism of a verdict.
+#[derive(serde::Serialize)]
+struct CauseJson<'a> {
+    name: &'a str,
+    magnitude: f64,
+    uncertainty: f64,
+    unit: &'a str,
+}
+
+/// The JSON document of a verdict (field order as written).
+#[derive(serde::Serialize)]
+struct VerdictDocument<'a> {
+    cause: &'a str,
+    /// One mechanism: a number; two: an array; none: null.
+    magnitude: serde_json::Value,
+    uncertainty: serde_json::Value,
+    causes: Vec<CauseJson<'a>>,
+    nmse_base_pct: f64,
+    nmse_extended_pct: f64,
+    nmse_ratio: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    nmse_per_trace_base_pct: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    nmse_per_trace_extended_pct: Option<f64>,
+    noise_sigma_bar: f64,
+    magnitudes: Vec<f64>,
+    ranking: &'a [RankingJson<'a>],
+}
+
+/// The JSON verdict: `{"cause", "magnitude", "uncertainty", "causes", "nmse_base_pct",
+/// "nmse_extended_pct", "nmse_ratio", ["nmse_per_trace_base_pct", "nmse_per_trace_extended_pct",]
+/// "noise_sigma_bar", "magnitudes", "ranking"}` (see [`AuditOutcome::to_json`]); serde_json
+/// escapes every string and writes a non-finite number as `null`.
+pub(crate) fn verdict_json(v: &VerdictJson) -> serde_json::Value {
+    let one_or_list = |pick: fn(&(&str, &str, f64, f64)) -> f64| match v.causes.len() {
+        0 => serde_json::Value::Null,
+        1 => serde_json::json!(pick(&v.causes[0])),
+        _ => serde_json::json!(v.causes.iter().map(pick).collect::<Vec<_>>()),
+    };
+    let doc = VerdictDocument {
+        cause: v.cause,
+        magnitude: one_or_list(|c| c.2),
+        uncertainty: one_or_list(|c| c.3),
+        causes: v
+            .causes
+            .iter()
+            .map(|&(name, unit, magnitude, uncertainty)| CauseJson { name, magnitude, uncertainty, unit })
+            .collect(),
+        nmse_base_pct: v.nmse_pct.0,
+        nmse_extended_pct: v.nmse_pct.1,
+        nmse_ratio: v.nmse_pct.0 / v.nmse_pct.1,
+        nmse_per_trace_base_pct: v.nmse_per_trace_pct.map(|p| p.0),
+        nmse_per_trace_extended_pct: v.nmse_per_trace_pct.map(|p| p.1),
+        noise_sigma_bar: v.noise_sigma_bar,
+        magnitudes: v.causes.iter().map(|c| c.2).collect(),
+        ranking: &v.ranking,
+    };
+    // Serialising plain structs of strings and numbers cannot fail.
+    serde_json::to_value(doc).unwrap_or(serde_json::Value::Null)
 }
 
 /// A fitted candidate as a verdict ranks it (brake [`CandidateFit`], metro
@@ -403,61 +481,6 @@ impl RankedFit for CandidateFit {
     fn ranked(&self) -> (&str, Vec<f64>, f64, f64, f64) {
         (&self.name, self.effects.iter().map(|e| e.1).collect(), self.delta_bic, self.rss, self.nmse_pct)
     }
-}
-
-/// The JSON verdict: `{"cause", "magnitude", "uncertainty", "causes", "nmse_base_pct",
-/// "nmse_extended_pct", "nmse_ratio", ["nmse_per_trace_base_pct", "nmse_per_trace_extended_pct",]
-/// "noise_sigma_bar", "magnitudes", "ranking"}` (see [`AuditOutcome::to_json`]).
-pub(crate) fn verdict_json(v: &VerdictJson) -> String {
-    let num = |x: f64| if x.is_finite() { format!("{x:.6}") } else { "null".to_owned() };
-    let list = |xs: &mut dyn Iterator<Item = f64>| xs.map(num).collect::<Vec<_>>().join(", ");
-    let one_or_list = |pick: fn(&(&str, &str, f64, f64)) -> f64| match v.causes.len() {
-        0 => "null".to_owned(),
-        1 => num(pick(&v.causes[0])),
-        _ => format!("[{}]", list(&mut v.causes.iter().map(pick))),
-    };
-    let causes = v
-        .causes
-        .iter()
-        .map(|(name, unit, m, sd)| {
-            format!(r#"{{"name": "{name}", "magnitude": {}, "uncertainty": {}, "unit": "{unit}"}}"#, num(*m), num(*sd))
-        })
-        .collect::<Vec<_>>()
-        .join(", ");
-    let ranking = v
-        .ranking
-        .iter()
-        .map(|c| {
-            format!(
-                r#"{{"name": "{}", "magnitudes": [{}], "delta_bic": {}, "rss_ratio": {}, "nmse_pct": {}}}"#,
-                c.name,
-                list(&mut c.magnitudes.iter().copied()),
-                num(c.delta_bic),
-                num(c.rss_ratio),
-                num(c.nmse_pct)
-            )
-        })
-        .collect::<Vec<_>>()
-        .join(",\n    ");
-    let per_trace = v.nmse_per_trace_pct.map_or(String::new(), |(b, e)| {
-        format!("  \"nmse_per_trace_base_pct\": {},\n  \"nmse_per_trace_extended_pct\": {},\n", num(b), num(e))
-    });
-    format!(
-        "{{\n  \"cause\": \"{}\",\n  \"magnitude\": {},\n  \"uncertainty\": {},\n  \"causes\": [{}],\n  \
-         \"nmse_base_pct\": {},\n  \"nmse_extended_pct\": {},\n  \"nmse_ratio\": {},\n{}  \
-         \"noise_sigma_bar\": {},\n  \"magnitudes\": [{}],\n  \"ranking\": [\n    {}\n  ]\n}}\n",
-        v.cause,
-        one_or_list(|c| c.2),
-        one_or_list(|c| c.3),
-        causes,
-        num(v.nmse_pct.0),
-        num(v.nmse_pct.1),
-        num(v.nmse_pct.0 / v.nmse_pct.1),
-        per_trace,
-        num(v.noise_sigma_bar),
-        list(&mut v.causes.iter().map(|c| c.2)),
-        ranking
-    )
 }
 
 /// One line of a text ranking: name, ΔBIC, RSS ratio, NMSE and `name = magnitude ± σ unit` of
@@ -1194,7 +1217,7 @@ impl AuditOutcome {
     /// `magnitudes` is always an array (empty for `none`) and `causes` lists
     /// `{"name", "magnitude", "uncertainty", "unit"}` objects, so a reader need not branch.
     /// The NMSEs are SPEC §6 against the mean measured trace of each configuration group.
-    pub fn to_json(&self) -> String {
+    pub fn to_json(&self) -> serde_json::Value {
         verdict_json(&VerdictJson {
             cause: &self.cause,
             causes: self.cause_effects.iter().map(|(e, v, sd)| (e.name(), e.unit(), *v, *sd)).collect(),
@@ -1267,32 +1290,31 @@ fn fmt_base(u: &[f64]) -> String {
     BASE_NAMES.iter().zip(u).map(|(n, v)| format!("{n} {v:.2}")).collect::<Vec<_>>().join(", ")
 }
 
-/// Options of `host-sim audit`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct AuditArgs {
-    /// Data set directory (manifest.csv + traces) of releases of one locomotive.
-    pub path: PathBuf,
+/// Options of the audit run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AuditRunOptions {
     /// Write the verdict as JSON.
-    #[arg(long)]
     pub json: Option<PathBuf>,
     /// Write residual and comparison plots (SVG) into this directory.
-    #[arg(long)]
     pub plot: Option<PathBuf>,
-    /// Write a self-contained HTML report (inline SVG) to this file; without a value to
-    /// `audit_report.html` in the `--plot` directory, or in the current directory.
-    #[arg(long, num_args = 0..=1, value_name = "FILE")]
-    pub report: Option<Option<PathBuf>>,
-    /// Do not try pairs of mechanisms.
-    #[arg(long)]
-    pub no_pairs: bool,
+    /// Write a self-contained HTML report (inline SVG) to this file.
+    pub report: Option<PathBuf>,
+    /// Also try pairs of mechanisms.
+    pub pairs: bool,
+}
+
+impl Default for AuditRunOptions {
+    fn default() -> Self {
+        Self { json: None, plot: None, report: None, pairs: true }
+    }
 }
 
 /// The audit of a SPEC §7 data set directory with the default options: what the demo and other
 /// tools call (`write_outputs` then writes the files; `audit_plot::svgs` / `audit_plot::html_section`
 /// give the plots and the report body as strings for embedding).
-pub fn audit_dir(path: &Path) -> Result<AuditOutcome> {
-    let data = load_dataset(path)?;
-    audit(&data, AuditOptions::default())
+pub fn audit_dir(path: &Path) -> Result<(AuditOutcome, Skipped)> {
+    let (data, skipped) = load_dataset(path)?;
+    Ok((audit(&data, AuditOptions::default())?, skipped))
 }
 
 /// Default file name of the HTML report.

@@ -1,12 +1,13 @@
 //! Plots (SVG, plotters) and the self-contained HTML page of `host-sim audit`.
 
-use crate::audit::{audit, load_dataset, AuditArgs, AuditOptions, AuditOutcome, CurveSet, REPORT_FILE};
+use crate::audit::{audit, load_dataset, AuditOptions, AuditOutcome, AuditRunOptions, CurveSet};
 use anyhow::Context as _;
 use anyhow::{anyhow, Result};
+use pbm_io::error::Skipped;
 use pbm_report::chart::draw_labelled_lines;
 use plotters::prelude::*;
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 fn span(values: &[&[f64]], min_span: f64) -> std::ops::Range<f64> {
     pbm_report::plot::range(values.iter().flat_map(|v| v.iter()), min_span)
@@ -233,23 +234,20 @@ pub fn html_section(out: &AuditOutcome) -> Result<String> {
     Ok(h)
 }
 
-/// `host-sim audit`.
-pub fn run(a: &AuditArgs) -> Result<()> {
+/// Audits the data set in `path` (the summary on stdout) and writes the outputs of `a`;
+/// returns the traces skipped.
+pub fn run(path: &Path, a: &AuditRunOptions) -> Result<Skipped> {
     let start = std::time::Instant::now();
-    let data = load_dataset(&a.path)?;
-    let out = audit(&data, AuditOptions { pairs: !a.no_pairs, ..AuditOptions::default() })?;
+    let (data, skipped) = load_dataset(path)?;
+    let out = audit(&data, AuditOptions { pairs: a.pairs, ..AuditOptions::default() })?;
     print!("{}", out.summary());
     eprintln!(
         "audit of {} traces in {:.1} s",
         data.groups.iter().map(|g| g.files.len()).sum::<usize>(),
         start.elapsed().as_secs_f64()
     );
-    let report = a.report.as_ref().map(|r| match (r, &a.plot) {
-        (Some(file), _) => file.clone(),
-        (None, Some(dir)) => dir.join(REPORT_FILE),
-        (None, None) => PathBuf::from(REPORT_FILE),
-    });
-    write_outputs(&out, a.json.as_deref(), a.plot.as_deref(), report.as_deref())
+    write_outputs(&out, a.json.as_deref(), a.plot.as_deref(), a.report.as_deref())?;
+    Ok(skipped)
 }
 
 /// Writes the JSON verdict, the plots (`curves_N.svg`, `residual_N.svg` per configuration group,
@@ -261,7 +259,7 @@ pub fn write_outputs(
     report: Option<&Path>,
 ) -> Result<()> {
     if let Some(p) = json {
-        std::fs::write(p, out.to_json()).with_context(|| format!("cannot write {}", p.display()))?;
+        pbm_io::table::write_json(p, &out.to_json())?;
     }
     if let Some(dir) = plot {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;

@@ -179,30 +179,29 @@ pub fn check_case(case: &Case) -> Result<CaseResult> {
     Ok(check_outcome(&case.truth, audit(&case.data, AuditOptions::default())?))
 }
 
-/// Options of `host-sim audit-sweep`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct SweepArgs {
+/// Options of the audit-sweep run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SweepOptions {
     /// Number of single-mechanism hidden-effect cases.
-    #[arg(long, default_value_t = 200)]
     pub cases: u64,
     /// First seed (case k uses seed + k).
-    #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Mechanisms to draw from (comma-separated; default all).
-    #[arg(long, value_delimiter = ',')]
-    pub effects: Vec<String>,
-    /// Magnitude range `LO,HI` replacing the plausible ranges (e.g. to probe a limit).
-    #[arg(long, value_delimiter = ',', allow_negative_numbers = true)]
-    pub range: Vec<f64>,
+    /// Mechanisms to draw from (empty: all).
+    pub effects: Vec<Mechanism>,
+    /// Magnitude range `(low, high)` replacing the plausible ranges (e.g. to probe a limit).
+    pub range: Option<(f64, f64)>,
     /// Also run this many two-mechanism cases (distinct mechanisms, both plausible).
-    #[arg(long, default_value_t = 0)]
     pub pairs: u64,
     /// Also run this many null cases (clean plant; the audit must say `none`).
-    #[arg(long, default_value_t = 0)]
     pub null_cases: u64,
     /// Print the audit summary of every missed case.
-    #[arg(long)]
     pub verbose: bool,
+}
+
+impl Default for SweepOptions {
+    fn default() -> Self {
+        Self { cases: 200, seed: 1, effects: Vec::new(), range: None, pairs: 0, null_cases: 0, verbose: false }
+    }
 }
 
 #[derive(Default)]
@@ -224,18 +223,13 @@ impl Tally {
     }
 }
 
-/// `host-sim audit-sweep`.
-pub fn run(a: &SweepArgs) -> Result<()> {
-    let pool: Vec<Mechanism> = if a.effects.is_empty() {
-        Mechanism::ALL.to_vec()
-    } else {
-        a.effects.iter().map(|n| crate::plant::effect_by_name(n.trim())).collect::<Result<_>>()?
-    };
-    let range = match a.range.as_slice() {
-        [] => None,
-        [lo, hi] if lo.is_finite() && hi.is_finite() && lo <= hi => Some((*lo, *hi)),
-        _ => bail!("--range needs LO,HI with LO ≤ HI"),
-    };
+/// Runs the hidden-effect sweep and prints its hit rates.
+pub fn run(a: &SweepOptions) -> Result<()> {
+    let pool: Vec<Mechanism> = if a.effects.is_empty() { Mechanism::ALL.to_vec() } else { a.effects.clone() };
+    let range = a.range;
+    if range.is_some_and(|(lo, hi)| !(lo.is_finite() && hi.is_finite() && lo <= hi)) {
+        bail!("a magnitude range needs low ≤ high, both finite");
+    }
     let start = std::time::Instant::now();
     let mut jobs: Vec<(u64, usize)> = (0..a.cases).map(|k| (a.seed + k, 1)).collect();
     jobs.extend((0..a.pairs).map(|k| (a.seed + PAIR_SEED_OFFSET + k, 2)));

@@ -2,7 +2,7 @@
 //! the accuracy study behind [`GENERATE_STEP_S`]. Prints a report and writes it (Markdown) to
 //! `--report` (default `bench/host.md`).
 
-use crate::generate::{draw_fault, fleet, generate, simulate_plant, GenerateArgs, GENERATE_STEP_S};
+use crate::generate::{draw_fault, fleet, generate, simulate_plant, GenerateOptions, GENERATE_STEP_S};
 use crate::reference::REFERENCE_STEP_S;
 use anyhow::{Context, Result};
 use pbm::monitor::Monitor;
@@ -12,33 +12,40 @@ use std::hint::black_box;
 use std::path::PathBuf;
 use std::time::Instant;
 
-/// Options of `host-sim bench`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct BenchArgs {
+/// Options of the bench run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchOptions {
     /// Twin-alone samples to time (single thread).
-    #[arg(long, default_value_t = 12_000_000)]
     pub twin_samples: u64,
     /// Monitor-pipeline samples to time (single thread).
-    #[arg(long, default_value_t = 3_000_000)]
     pub pipeline_samples: u64,
     /// Training traces per class for the generate timing (paper size: 1100 + 50, 5 classes).
-    #[arg(long, default_value_t = 1100)]
     pub per_class: usize,
     /// Test traces per class for the generate timing.
-    #[arg(long, default_value_t = 50)]
     pub test_per_class: usize,
     /// Skip the generate timing.
-    #[arg(long)]
     pub skip_generate: bool,
     /// Skip the integration-step accuracy study.
-    #[arg(long)]
     pub skip_step_study: bool,
     /// Scratch directory for the generated set (removed afterwards).
-    #[arg(long)]
     pub scratch: Option<PathBuf>,
     /// Where to write the Markdown report.
-    #[arg(long, default_value = "bench/host.md")]
     pub report: PathBuf,
+}
+
+impl Default for BenchOptions {
+    fn default() -> Self {
+        Self {
+            twin_samples: 12_000_000,
+            pipeline_samples: 3_000_000,
+            per_class: 1100,
+            test_per_class: 50,
+            skip_generate: false,
+            skip_step_study: false,
+            scratch: None,
+            report: PathBuf::from("bench/host.md"),
+        }
+    }
 }
 
 /// Samples per second, by wall clock and by the thread's CPU time (`None` off Linux).
@@ -190,8 +197,8 @@ pub fn step_study() -> Result<StepStudy> {
     Ok(StepStudy { nmse: rows, seconds_per_trace: seconds, max_abs_err_bar: max_err })
 }
 
-/// `host-sim bench`.
-pub fn run(a: &BenchArgs) -> Result<()> {
+/// Runs the throughput figures (stdout) and writes the Markdown report.
+pub fn run(a: &BenchOptions) -> Result<()> {
     let mut md = String::new();
     let cpu = std::fs::read_to_string("/proc/cpuinfo")
         .ok()
@@ -222,11 +229,11 @@ pub fn run(a: &BenchArgs) -> Result<()> {
 
     if !a.skip_generate {
         let scratch = a.scratch.clone().unwrap_or_else(|| std::env::temp_dir().join("host-sim-bench-generate"));
-        let args = GenerateArgs {
+        let args = GenerateOptions {
             per_class: a.per_class,
             test_per_class: a.test_per_class,
             force: true,
-            ..GenerateArgs::with_defaults(scratch.clone())
+            ..GenerateOptions::new(scratch.clone())
         };
         let cpu0 = process_cpu_seconds();
         let s = generate(&args, true)?;

@@ -1,4 +1,4 @@
-//! `host-sim can …`: decode CAN traffic as the cab display shows it, send a log onto a bus,
+//! CAN tools: decode CAN traffic as the cab display shows it, send a log onto a bus,
 //! and write a demonstration log.
 //!
 //! `can decode FILE` (a candump log, `-` for stdin, or `--can-iface NAME` to listen on a
@@ -26,93 +26,67 @@ use std::collections::BTreeMap;
 use std::io::{BufRead, Write};
 use std::path::PathBuf;
 
-/// Options of `host-sim can`.
-#[derive(Debug, clap::Args)]
-pub struct CanArgs {
-    /// What to do.
-    #[command(subcommand)]
-    pub command: CanCommand,
-}
-
-/// Subcommands of `host-sim can`.
-#[derive(Debug, clap::Subcommand)]
-pub enum CanCommand {
-    /// Decode a candump log (or stdin, or a CAN interface) and print the reports as the cab
-    /// display shows them; flag and skip bad frames; summary at the end.
-    Decode(DecodeArgs),
-    /// Send the frames of a candump log onto a CAN interface (needs `--features socketcan`).
-    Send(SendArgs),
-    /// Write a demonstration candump log: simulated releases through the monitor and the CAN
-    /// reporter, with scripted verdicts covering every diagnosis and reason code.
-    DemoLog(DemoLogArgs),
-}
-
 /// Output format of `can decode`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum DecodeFormat {
     /// Cab display lines.
     Text,
-    /// One CSV row per frame with physical values (used by scripts/can-cantools-check.sh).
+    /// One CSV row per frame with physical values (what the cantools cross-check reads).
     Csv,
 }
 
-/// Options of `host-sim can decode`.
-#[derive(Debug, clap::Args)]
-pub struct DecodeArgs {
-    /// candump log file, `-` for standard input.
-    #[arg(required_unless_present = "can_iface")]
+/// Where the cab display's frames come from and how it shows them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DecodeOptions {
+    /// A candump log file, `-` for standard input (or `None` with `can_iface`).
     pub file: Option<PathBuf>,
-    /// Listen on this SocketCAN interface instead (Linux, `--features socketcan`).
-    #[arg(long)]
+    /// Listen on this SocketCAN interface instead (Linux, built with the `socketcan` feature).
     pub can_iface: Option<String>,
-    /// With --can-iface: stop after this many seconds without a frame (default: never).
-    #[arg(long)]
+    /// With `can_iface`: stop after this many seconds without a frame (`None`: never).
     pub idle_timeout: Option<f64>,
-    /// Also print status/heartbeat frames.
-    #[arg(long)]
+    /// Also show status/heartbeat frames.
     pub status: bool,
     /// Output format.
-    #[arg(long, value_enum, default_value_t = DecodeFormat::Text)]
     pub format: DecodeFormat,
 }
 
-/// Options of `host-sim can send`.
-#[derive(Debug, clap::Args)]
-pub struct SendArgs {
-    /// candump log file, `-` for standard input.
+/// What to send where.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SendOptions {
+    /// A candump log file, `-` for standard input.
     pub file: PathBuf,
     /// SocketCAN interface to send on, e.g. vcan0.
-    #[arg(long)]
     pub can_iface: String,
     /// Keep the log's timing (sleep between frames) instead of sending as fast as possible.
-    #[arg(long)]
     pub realtime: bool,
 }
 
-/// Options of `host-sim can demo-log`.
-#[derive(Debug, clap::Args)]
-pub struct DemoLogArgs {
-    /// Output file (default: standard output).
-    #[arg(long)]
+/// The demonstration log to write.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DemoLogOptions {
+    /// Output file (`None`: standard output).
     pub out: Option<PathBuf>,
     /// Interface name written in the log.
-    #[arg(long, default_value = DEFAULT_IFACE)]
     pub iface: String,
     /// Instead of simulated releases, sweep the codec: every diagnosis, reason, sensor and
     /// estimator code with field values at and beyond the edges of their ranges.
-    #[arg(long)]
     pub sweep: bool,
 }
 
+impl Default for DemoLogOptions {
+    fn default() -> Self {
+        Self { out: None, iface: DEFAULT_IFACE.to_owned(), sweep: false }
+    }
+}
+
 /// `host-sim can`.
-pub fn run(a: &CanArgs) -> Result<()> {
-    match &a.command {
-        CanCommand::Decode(d) => match run_decode(d) {
-            Err(e) if is_broken_pipe(&e) => Ok(()),
-            other => other,
-        },
-        CanCommand::Send(s) => run_send(s),
-        CanCommand::DemoLog(d) => run_demo_log(d),
+/// Decodes a log or an interface as the cab display shows it (stdout), the summary on stderr;
+/// a closed output pipe (`… | head`) ends it quietly.
+pub fn decode(a: &DecodeOptions) -> Result<()> {
+    match run_decode(a) {
+        Err(e) if is_broken_pipe(&e) => Ok(()),
+        other => other,
     }
 }
 
@@ -389,7 +363,7 @@ pub fn decode_source<W: Write>(source: &mut impl FrameSource, display: &mut CabD
     Ok(())
 }
 
-fn run_decode(a: &DecodeArgs) -> Result<()> {
+fn run_decode(a: &DecodeOptions) -> Result<()> {
     let stdout = std::io::stdout();
     let mut display = CabDisplay::new(std::io::BufWriter::new(stdout.lock()), a.status, a.format);
     if let Some(iface) = &a.can_iface {
@@ -435,7 +409,8 @@ fn listen<W: Write>(iface: &str, _idle_timeout: Option<f64>, _display: &mut CabD
     bail!("--can-iface {iface}: this host-sim was built without SocketCAN (build with `--features socketcan` on Linux)")
 }
 
-fn run_send(a: &SendArgs) -> Result<()> {
+/// Sends the frames of a candump log onto a CAN interface.
+pub fn send(a: &SendOptions) -> Result<()> {
     let reader: Box<dyn BufRead> = if a.file.as_os_str() == "-" {
         Box::new(std::io::BufReader::new(std::io::stdin()))
     } else {
@@ -654,7 +629,8 @@ pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
     Ok((n, sink))
 }
 
-fn run_demo_log(a: &DemoLogArgs) -> Result<()> {
+/// Writes the demonstration log (or the codec sweep).
+pub fn demo_log(a: &DemoLogOptions) -> Result<()> {
     let write = |w| -> Result<(u64, CandumpWriter<_>)> {
         if a.sweep {
             write_codec_sweep(w)

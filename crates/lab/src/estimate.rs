@@ -26,13 +26,15 @@
 //! `--synthetic N`, N traces per class drawn in memory by the same generator code.
 
 use crate::fit::{fit_trace, pressures_from_adc, FitParams};
-use crate::generate::{fleet, run_job, PlantEffects, TraceJob};
+use crate::generate::{fleet, run_job, TraceJob};
 use anyhow::{bail, Context, Result};
 use pbm::estimator::Estimates;
 use pbm::monitor::Monitor;
 use pbm::twin::SAMPLE_PERIOD_S;
 use pbm::{AdcCounts, FaultClass, TwinParams};
-use pbm_io::dataset::{read_manifest, trace_path, ManifestRow, TRUTH};
+use pbm_io::dataset::{Dataset, ManifestRow, TRUTH};
+use pbm_io::error::{FileError, Skipped};
+use pbm_io::table::{read_rows, CsvFile};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::fmt::Write as _;
@@ -81,8 +83,8 @@ impl Param {
     }
 }
 
-/// Ground truth of one trace.
-#[derive(Debug, Clone, PartialEq)]
+/// Ground truth of one trace (the columns of `truth.csv` the estimator is judged on, by name).
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
 pub struct Truth {
     /// File (relative to the data set) or synthetic name.
     pub file: String,
@@ -130,49 +132,11 @@ impl Truth {
     }
 }
 
-/// Reads `truth.csv` (columns by name: file, label, supply_bar_g, orifice_mm, leak_mm, v0_l, cf).
-pub fn read_truth(dir: &Path) -> Result<HashMap<String, Truth>> {
-    let path = dir.join(TRUTH);
-    let text = std::fs::read_to_string(&path).with_context(|| format!("cannot read {}", path.display()))?;
-    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
-    let Some((_, header)) = lines.next() else { bail!("{}: empty", path.display()) };
-    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
-    let col = |name: &str| {
-        cols.iter().position(|c| *c == name).with_context(|| format!("{}: no column `{name}`", path.display()))
-    };
-    let idx = [
-        col("file")?,
-        col("label")?,
-        col("supply_bar_g")?,
-        col("orifice_mm")?,
-        col("leak_mm")?,
-        col("v0_l")?,
-        col("cf")?,
-    ];
-    let mut out = HashMap::new();
-    for (n, line) in lines {
-        let f: Vec<&str> = line.split(',').map(str::trim).collect();
-        let get =
-            |i: usize| f.get(idx[i]).copied().with_context(|| format!("{}:{}: too few fields", path.display(), n + 1));
-        let num = |i: usize| -> Result<f64> {
-            let s = get(i)?;
-            s.parse::<f64>()
-                .ok()
-                .filter(|v| v.is_finite())
-                .with_context(|| format!("{}:{}: `{s}` is not a number", path.display(), n + 1))
-        };
-        let t = Truth {
-            file: get(0)?.to_owned(),
-            label: get(1)?.to_owned(),
-            supply_bar_g: num(2)?,
-            orifice_mm: num(3)?,
-            leak_mm: num(4)?,
-            v0_l: num(5)?,
-            cf: num(6)?,
-        };
-        out.insert(t.file.clone(), t);
-    }
-    Ok(out)
+/// Reads `truth.csv` (columns by name: file, label, supply_bar_g, orifice_mm, leak_mm, v0_l, cf;
+/// others ignored).
+pub fn read_truth(dir: &Path) -> Result<HashMap<String, Truth>, FileError> {
+    let rows: Vec<(usize, Truth)> = read_rows(&dir.join(TRUTH))?;
+    Ok(rows.into_iter().map(|(_, t)| (t.file.clone(), t)).collect())
 }
 
 /// What the estimator did on one trace.
@@ -240,42 +204,56 @@ pub fn synthetic_cases(classes: &[FaultClass], n: usize, seed: u64) -> Result<Ve
         .collect();
     jobs.par_iter()
         .map(|job| {
-            let (adc, t) = run_job(job, &locos, seed, &PlantEffects::default())?;
+            let (adc, t) = run_job(job, &locos, seed, &pbm::mechanism::Extensions::NONE)?;
             Ok((Truth::from_params(job.file(), job.class.label().to_owned(), &t.params), adc))
         })
         .collect()
 }
 
-/// Options of `host-sim estimate`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct EstimateArgs {
-    /// Data set directory from `host-sim generate` (omit with --synthetic).
+/// Options of the estimate run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EstimateOptions {
+    /// A generated data set directory (with `truth.csv`; `None` with `synthetic`).
     pub dataset: Option<PathBuf>,
     /// Write the scatter plots (SVG) and estimates.csv here.
-    #[arg(long)]
     pub plot: Option<PathBuf>,
     /// Instead of a data set: this many synthetic traces per class.
-    #[arg(long)]
     pub synthetic: Option<usize>,
     /// Seed of the synthetic traces.
-    #[arg(long, default_value_t = 7)]
     pub seed: u64,
     /// With a data set: only this split (train/test).
-    #[arg(long, default_value = "test")]
     pub split: String,
     /// With a data set: at most this many traces per class (0 = all).
-    #[arg(long, default_value_t = 20)]
     pub per_class: usize,
     /// Nelder–Mead iterations of the batch fit per trace (0 = no batch fit).
-    #[arg(long, default_value_t = 200)]
     pub batch_iters: u64,
 }
 
-fn load_dataset(dir: &Path, split: &str, per_class: usize) -> Result<Vec<(Truth, Vec<u16>)>> {
-    let rows = read_manifest(dir)?;
+impl Default for EstimateOptions {
+    fn default() -> Self {
+        Self {
+            dataset: None,
+            plot: None,
+            synthetic: None,
+            seed: 7,
+            split: "test".to_owned(),
+            per_class: 20,
+            batch_iters: 200,
+        }
+    }
+}
+
+/// A trace's ground truth and its ADC counts.
+type TruthAndCounts = (Truth, Vec<u16>);
+
+/// The selected traces of a data set with their truth; a trace without truth or unreadable is
+/// skipped with its reason.
+fn load_dataset(dir: &Path, split: &str, per_class: usize) -> Result<(Vec<TruthAndCounts>, Skipped)> {
+    let data = Dataset::open(dir)?;
     let truth = read_truth(dir)?;
     let mut count = HashMap::<String, usize>::new();
-    let chosen: Vec<&ManifestRow> = rows
+    let chosen: Vec<&ManifestRow> = data
+        .rows()
         .iter()
         .filter(|r| split.is_empty() || r.split == split)
         .filter(|r| {
@@ -284,21 +262,17 @@ fn load_dataset(dir: &Path, split: &str, per_class: usize) -> Result<Vec<(Truth,
             per_class == 0 || *n <= per_class
         })
         .collect();
-    chosen
+    let loaded: Vec<Result<(Truth, Vec<u16>), FileError>> = chosen
         .par_iter()
         .map(|r| {
-            let t = truth.get(&r.file).with_context(|| format!("{} has no row in {TRUTH}", r.file))?.clone();
-            let path = trace_path(dir, r);
-            let trace = pbm_io::trace::read_trace(&path)?;
-            let adc = match trace.samples {
-                pbm_io::trace::Samples::Adc(a) => a,
-                pbm_io::trace::Samples::Bar(p) => {
-                    p.iter().map(|&v| pbm::sensor::adc_from_bar(pbm::BarG(v)).0).collect()
-                }
-            };
-            Ok((t, adc))
+            let t = truth.get(&r.file).ok_or_else(|| FileError::new(&r.file, 0, format!("no row in {TRUTH}")))?;
+            let trace = data.read_trace(r)?;
+            Ok((t.clone(), trace.adc_counts()))
         })
-        .collect()
+        .collect();
+    let mut skipped = Skipped::none();
+    let cases = loaded.into_iter().filter_map(|r| r.map_err(|e| skipped.push(e)).ok()).collect();
+    Ok((cases, skipped))
 }
 
 fn quantile(v: &mut [f64], q: f64) -> f64 {
@@ -364,27 +338,42 @@ pub fn table(results: &[CaseResult]) -> String {
 }
 
 /// Per-trace CSV of the results.
-pub fn results_csv(results: &[CaseResult]) -> String {
-    let mut s = String::from(
-        "file,label,truth_orifice_mm,truth_leak_mm,truth_supply_bar_g,eff_orifice_mm,eff_leak_mm,\
-         rls_orifice_mm,rls_leak_mm,rls_supply_bar_g,rls_inflow_bar_s,rls_plateau_bar_g,\
-         batch_orifice_mm,batch_leak_mm,batch_supply_bar_g,batch_nmse_pct,settle_orifice_s,settle_leak_s,settle_supply_s\n",
-    );
+pub fn write_results_csv(path: &Path, results: &[CaseResult]) -> Result<()> {
+    let mut f = CsvFile::create(path)?;
+    f.record([
+        "file",
+        "label",
+        "truth_orifice_mm",
+        "truth_leak_mm",
+        "truth_supply_bar_g",
+        "eff_orifice_mm",
+        "eff_leak_mm",
+        "rls_orifice_mm",
+        "rls_leak_mm",
+        "rls_supply_bar_g",
+        "rls_inflow_bar_s",
+        "rls_plateau_bar_g",
+        "batch_orifice_mm",
+        "batch_leak_mm",
+        "batch_supply_bar_g",
+        "batch_nmse_pct",
+        "settle_orifice_s",
+        "settle_leak_s",
+        "settle_supply_s",
+    ])?;
     let o = |v: Option<f64>| v.map_or("-".to_owned(), |v| format!("{v:.4}"));
     for r in results {
         let t = &r.truth;
         let e = &r.last;
         let b = r.batch.map(|b| b.map(Some)).unwrap_or([None; 3]);
-        let _ = writeln!(
-            s,
-            "{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{},{},{},{},{},{},{},{},{},{},{},{}",
-            t.file,
-            t.label,
-            t.orifice_mm,
-            t.leak_mm,
-            t.supply_bar_g,
-            t.value(Param::Orifice),
-            t.value(Param::Leak),
+        f.record([
+            t.file.clone(),
+            t.label.clone(),
+            format!("{:.4}", t.orifice_mm),
+            format!("{:.4}", t.leak_mm),
+            format!("{:.4}", t.supply_bar_g),
+            format!("{:.4}", t.value(Param::Orifice)),
+            format!("{:.4}", t.value(Param::Leak)),
             o(Param::Orifice.of(e)),
             o(Param::Leak.of(e)),
             o(Param::Supply.of(e)),
@@ -397,9 +386,9 @@ pub fn results_csv(results: &[CaseResult]) -> String {
             o(r.settle_s[0]),
             o(r.settle_s[1]),
             o(r.settle_s[2]),
-        );
+        ])?;
     }
-    s
+    f.finish()
 }
 
 const CLASS_COLOURS: [plotters::style::RGBColor; 6] = [
@@ -460,12 +449,13 @@ pub fn scatter_svg(path: &Path, results: &[CaseResult], x: Param, y: Param) -> R
     Ok(points.len())
 }
 
-/// `host-sim estimate`.
-pub fn run(a: &EstimateArgs) -> Result<()> {
-    let cases = match (&a.dataset, a.synthetic) {
+/// Scores the online estimator (and the batch fit) against the truth: the table on stdout,
+/// plots and CSV when asked; returns the traces skipped.
+pub fn run(a: &EstimateOptions) -> Result<Skipped> {
+    let (cases, skipped) = match (&a.dataset, a.synthetic) {
         (Some(dir), None) => load_dataset(dir, &a.split, a.per_class)?,
-        (None, Some(n)) => synthetic_cases(&FaultClass::PAPER, n, a.seed)?,
-        _ => bail!("give either a DATASET directory or --synthetic N"),
+        (None, Some(n)) => (synthetic_cases(&FaultClass::PAPER, n, a.seed)?, Skipped::none()),
+        _ => bail!("give either a data set directory or a number of synthetic traces per class"),
     };
     if cases.is_empty() {
         bail!("no traces selected");
@@ -475,7 +465,7 @@ pub fn run(a: &EstimateArgs) -> Result<()> {
     print!("{}", table(&results));
     if let Some(dir) = &a.plot {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        std::fs::write(dir.join("estimates.csv"), results_csv(&results))?;
+        write_results_csv(&dir.join("estimates.csv"), &results)?;
         for (x, y) in [(Param::Orifice, Param::Leak), (Param::Orifice, Param::Supply), (Param::Leak, Param::Supply)] {
             let path = dir.join(format!("scatter_{}_{}.svg", x.name(), y.name()));
             let n = scatter_svg(&path, &results, x, y)?;
@@ -483,5 +473,5 @@ pub fn run(a: &EstimateArgs) -> Result<()> {
         }
         eprintln!("wrote {}", dir.join("estimates.csv").display());
     }
-    Ok(())
+    Ok(skipped)
 }

@@ -13,18 +13,21 @@
 //! parameters (inlet orifice, leak, supply) that the online estimator tracks, for comparing
 //! the RLS with a batch fit on the same quantities.
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use argmin::core::{CostFunction, Error as ArgminError, Executor, State};
 use argmin::solver::neldermead::NelderMead;
 use pbm::sensor::{bar_from_adc, pressure_from_adc};
 use pbm::{AdcCounts, BarG, Meters, Twin, TwinParams};
-use std::path::{Path, PathBuf};
+use pbm_io::dataset::{select, Selection};
+use pbm_io::error::{FileError, Skipped};
+use std::path::Path;
 
 /// Cost of a candidate the twin refuses.
 pub const INVALID_COST: f64 = 1e9;
 
 /// Which parameters the fit frees (the others stay at the base brake's values).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum FitParams {
     /// The paper's θ = (K, B, sigma0, sigma1), log-scaled around the base values.
     Paper,
@@ -181,79 +184,74 @@ pub fn fit_trace(measured: &[Option<f64>], base: &TwinParams, which: FitParams, 
     })
 }
 
-/// Measured pressures of a trace file (either `p_bar` or `adc`).
-pub fn read_measured(path: &Path) -> Result<Vec<Option<f64>>> {
-    let trace = pbm_io::trace::read_trace(path)?;
-    Ok(match &trace.samples {
+/// Measured pressures of a trace (`None` where an ADC count is a sensor fault).
+pub fn measured_of(trace: &pbm_io::trace::Trace) -> Vec<Option<f64>> {
+    match &trace.samples {
         pbm_io::trace::Samples::Adc(adc) => pressures_from_adc(adc),
-        pbm_io::trace::Samples::Bar(p) => p.iter().map(|&v| v.is_finite().then_some(v)).collect(),
-    })
+        pbm_io::trace::Samples::Bar(p) => p.iter().map(|&v| Some(v)).collect(),
+    }
 }
 
-/// Options of `host-sim fit`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct FitArgs {
-    /// A trace file, or a data set directory (with manifest.csv).
-    pub input: PathBuf,
+/// Options of the fit run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FitOptions {
     /// Parameters to fit.
-    #[arg(long, value_enum, default_value_t = FitParams::Paper)]
     pub params: FitParams,
     /// Nelder–Mead iteration limit per trace.
-    #[arg(long, default_value_t = 300)]
     pub max_iters: u64,
     /// With a data set: fit only traces of this split (train/test).
-    #[arg(long)]
     pub split: Option<String>,
     /// With a data set: at most this many traces per class (0 = all).
-    #[arg(long, default_value_t = 0)]
     pub per_class: usize,
 }
 
-/// `host-sim fit`: prints one row per trace and a summary of the NMSE.
-pub fn run(a: &FitArgs) -> Result<()> {
+impl Default for FitOptions {
+    fn default() -> Self {
+        Self { params: FitParams::Paper, max_iters: 300, split: None, per_class: 0 }
+    }
+}
+
+/// Fits every selected trace under `input` (a trace file or a data set directory): one CSV row
+/// per trace on stdout, a summary of the NMSE on stderr; returns the traces skipped.
+pub fn run(input: &Path, a: &FitOptions) -> Result<Skipped> {
     use rayon::prelude::*;
     let base = TwinParams::nominal();
-    let jobs: Vec<(String, String, PathBuf)> = if a.input.is_dir() {
-        let rows = pbm_io::dataset::read_manifest(&a.input)?;
-        let mut per_class = std::collections::HashMap::<String, usize>::new();
-        rows.iter()
-            .filter(|r| a.split.as_deref().is_none_or(|s| r.split == s))
-            .filter(|r| {
-                let n = per_class.entry(r.label.clone()).or_default();
-                *n += 1;
-                a.per_class == 0 || *n <= a.per_class
-            })
-            .map(|r| (r.file.clone(), r.label.clone(), pbm_io::dataset::trace_path(&a.input, r)))
-            .collect()
-    } else {
-        vec![(a.input.display().to_string(), "-".into(), a.input.clone())]
-    };
-    let results: Vec<Result<(String, String, FitResult)>> = jobs
+    let selection = Selection { split: a.split.clone(), per_label: a.per_class };
+    let (items, mut skipped) = select(input, &selection)?;
+    let results: Vec<Result<FitResult, FileError>> = items
         .par_iter()
-        .map(|(file, label, path)| {
-            let measured = read_measured(path).with_context(|| format!("cannot read {}", path.display()))?;
-            let fit = fit_trace(&measured, &base, a.params, a.max_iters).with_context(|| format!("fitting {file}"))?;
-            Ok((file.clone(), label.clone(), fit))
+        .map(|item| {
+            let trace = pbm_io::trace::read_trace(&item.path)?;
+            let measured = measured_of(&trace);
+            fit_trace(&measured, &base, a.params, a.max_iters)
+                .map_err(|e| FileError::new(&item.name, 0, format!("fit: {e:#}")))
         })
         .collect();
     let names = a.params.names();
-    println!("file,label,{},{},{},{},nmse_pct,evaluations", names[0], names[1], names[2], names[3]);
+    let mut out = csv::Writer::from_writer(std::io::stdout().lock());
+    out.write_record(["file", "label", names[0], names[1], names[2], names[3], "nmse_pct", "evaluations"])?;
     let mut nmse = Vec::new();
-    let mut failures = 0;
-    for r in results {
+    for (item, r) in items.iter().zip(results) {
         match r {
-            Ok((file, label, f)) => {
+            Ok(f) => {
                 let v = f.values;
                 let n = f.nmse_pct.unwrap_or(f64::NAN);
                 nmse.push(n);
-                println!("{file},{label},{:.6},{:.6},{:.6},{:.6},{n:.3},{}", v[0], v[1], v[2], v[3], f.evaluations);
+                out.write_record([
+                    item.name.clone(),
+                    item.label.clone().unwrap_or_else(|| "-".into()),
+                    format!("{:.6}", v[0]),
+                    format!("{:.6}", v[1]),
+                    format!("{:.6}", v[2]),
+                    format!("{:.6}", v[3]),
+                    format!("{n:.3}"),
+                    f.evaluations.to_string(),
+                ])?;
             }
-            Err(e) => {
-                failures += 1;
-                eprintln!("error: {e:#}");
-            }
+            Err(e) => skipped.push(e),
         }
     }
+    out.flush()?;
     if !nmse.is_empty() {
         nmse.sort_by(f64::total_cmp);
         let mean = nmse.iter().sum::<f64>() / nmse.len() as f64;
@@ -265,8 +263,5 @@ pub fn run(a: &FitArgs) -> Result<()> {
             nmse[nmse.len() - 1]
         );
     }
-    if failures > 0 {
-        bail!("{failures} trace(s) could not be fitted");
-    }
-    Ok(())
+    Ok(skipped)
 }

@@ -1,8 +1,8 @@
-//! `host-sim generate`: a synthetic fleet data set in the SPEC §7 layout.
+//! The fleet data generator: a synthetic data set in the SPEC §7 layout.
 //!
 //! # What is drawn, and from what
 //!
-//! - **Fleet** (SPEC §5): `--locomotives` locomotives named `loco-01`, `loco-02`, …; each draws
+//! - **Fleet** (SPEC §5): `locomotives` locomotives named `loco-01`, `loco-02`, …; each draws
 //!   once V0, F0, K, Cf, Fc and Fs as nominal × U(0.95, 1.05) and its regulator setting as
 //!   U(7.67, 7.73) bar g, from its own random stream (seed, locomotive index).
 //! - **Faults** (SPEC §4): per trace, uniformly and exactly inside the SPEC ranges: `air_leak`
@@ -18,10 +18,10 @@
 //! # Locomotives and splits
 //!
 //! Classifiers are judged on locomotives they were not trained on (SPEC §5). With the default
-//! `--split held-out`, the last `--test-locomotives` locomotives (default 2 of 6: `loco-05`,
+//! held-out split, the last `test_locomotives` locomotives (default 2 of 6: `loco-05`,
 //! `loco-06`) supply only test traces and the others only training traces; traces are dealt to
 //! the locomotives of their split round-robin, so every locomotive has the same number of
-//! traces of every class. `--split shared` deals both splits round-robin over all locomotives
+//! traces of every class. The shared split deals both splits round-robin over all locomotives
 //! (a random split, for comparison with the paper).
 //!
 //! # Determinism
@@ -34,21 +34,22 @@
 //! # Files
 //!
 //! `manifest.csv` (`file,label,locomotive,split`), `truth.csv` (ground truth of every trace,
-//! columns in [`TRUTH_HEADER`]) and `traces/{split}/{label}_{k:04}.csv` (`t_s,adc`).
+//! columns in [`TRUTH_COLUMNS`]) and `traces/{split}/{label}_{k:04}.csv` (`t_s,adc`).
 
 use crate::random::{normal_pair, unit};
 use crate::reference::ReferenceTwin;
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
+use pbm::mechanism::Extensions;
 use pbm::sensor::adc_from_bar;
 use pbm::twin::SAMPLE_PERIOD_S;
 use pbm::{BarG, FaultClass, Meters, TwinParams};
 use pbm_io::dataset::{write_manifest, ManifestRow, MANIFEST, TRUTH};
+use pbm_io::table::CsvFile;
 use pbm_io::trace::write_adc_trace;
 use rand_chacha::ChaCha8Rng;
 use rand_core::{Rng, SeedableRng};
 use rayon::prelude::*;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -75,74 +76,89 @@ pub const BLOCK_MM: (f64, f64) = (0.35, 1.0);
 pub const LOW_SUPPLY_BAR_G: (f64, f64) = (3.5, 7.2);
 /// Missing orifice (port-limited) diameter range, mm (SPEC §4).
 pub const MISSING_MM: (f64, f64) = (2.5, 4.0);
-/// Columns of `truth.csv`.
-pub const TRUTH_HEADER: &str = "file,label,locomotive,split,supply_bar_g,orifice_mm,leak_mm,v0_l,f0_n,k_n_per_m,cf,\
-fc_n,fs_n,regulator_bar_g,final_bar_g,final_travel_mm";
+/// Columns of `truth.csv` (a set with sensor faults adds `sensor_fault`: the faults applied,
+/// `;`-joined).
+pub const TRUTH_COLUMNS: [&str; 16] = [
+    "file",
+    "label",
+    "locomotive",
+    "split",
+    "supply_bar_g",
+    "orifice_mm",
+    "leak_mm",
+    "v0_l",
+    "f0_n",
+    "k_n_per_m",
+    "cf",
+    "fc_n",
+    "fs_n",
+    "regulator_bar_g",
+    "final_bar_g",
+    "final_travel_mm",
+];
 
 /// How traces are split between training and test.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum SplitMode {
-    /// Test traces come only from held-out locomotives (the last `--test-locomotives`).
+    /// Test traces come only from held-out locomotives (the last `test_locomotives`).
     HeldOut,
     /// Both splits use every locomotive (random split).
     Shared,
 }
 
-/// Options of `host-sim generate`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct GenerateArgs {
-    /// Output directory (created; must be empty or absent unless --force).
-    #[arg(long)]
+/// What a generated data set holds and how it is drawn.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GenerateOptions {
+    /// Output directory (created; must be empty or absent unless `force`).
     pub out: PathBuf,
     /// Number of locomotives in the fleet.
-    #[arg(long, default_value_t = 6)]
     pub locomotives: usize,
     /// Training traces per class.
-    #[arg(long, default_value_t = 1100)]
     pub per_class: usize,
     /// Test traces per class.
-    #[arg(long, default_value_t = 50)]
     pub test_per_class: usize,
     /// Random seed: the same seed gives the same bytes.
-    #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Classes to generate (comma-separated labels; `orifice_missing` allowed).
-    #[arg(long, value_delimiter = ',', default_values_t = FaultClass::PAPER.map(|c| c.label().to_owned()))]
-    pub classes: Vec<String>,
+    /// Classes to generate (in any order; duplicates are ignored).
+    pub classes: Vec<FaultClass>,
     /// How locomotives are assigned to the splits.
-    #[arg(long, value_enum, default_value_t = SplitMode::HeldOut)]
     pub split: SplitMode,
-    /// Held-out locomotives for the test split (with --split held-out).
-    #[arg(long, default_value_t = 2)]
+    /// Held-out locomotives for the test split (with [`SplitMode::HeldOut`]).
     pub test_locomotives: usize,
     /// Worker threads (0 = all cores). The output does not depend on it.
-    #[arg(long, default_value_t = 0)]
     pub threads: usize,
     /// Overwrite a non-empty output directory.
-    #[arg(long)]
     pub force: bool,
-    /// Plant effect NAME=VALUE (repeatable), e.g. `transport_delay=0.1` (s: the valve opens late);
-    /// the names, units and ranges are those of the audit's mechanisms.
-    #[arg(long = "effect", value_parser = parse_effect_arg)]
-    pub effects: Vec<(String, f64)>,
-    /// Sensor or ADC fault KIND[=VALUE][@ONSET_S|@random] on every trace (repeatable, applied in
-    /// order): frozen, dead[=BAR], noisy[=SIGMA_BAR], spikes[=FRACTION], dropouts[=P],
-    /// lost_resolution[=BITS], clipped[=BAR], impossible_rate[=STEP_BAR],
-    /// implausible_level[=GAIN], offset[=BAR], open_circuit, short_circuit. The manifest label
-    /// stays the release's true class; the fault is in the trace's `# sensor_fault:` metadata
-    /// and truth.csv's `sensor_fault` column. Without @ONSET the onset is drawn per trace in
-    /// 1..50 s.
-    #[arg(long = "sensor-fault", value_parser = crate::sensor_faults::parse_spec)]
+    /// Mechanisms beyond SPEC §2 in every trace's plant ([`pbm::mechanism`]).
+    pub effects: Extensions,
+    /// Sensor or ADC faults applied to every trace, in order
+    /// ([`crate::sensor_faults::FaultSpec`]).
     pub sensor_faults: Vec<crate::sensor_faults::FaultSpec>,
-    /// Transducer noise before the ADC, σ in bar (SPEC §5: 0.01).
-    #[arg(long, default_value_t = NOISE_SIGMA_BAR)]
-    pub noise_bar: f64,
-    /// Relative manufacturing spread of V0, F0, K, Cf, Fc and Fs per locomotive (SPEC §5: 0.05).
-    #[arg(long, default_value_t = SPREAD_REL)]
-    pub spread: f64,
-    /// Range of the locomotives' regulator settings, LO,HI in bar g (SPEC §5: 7.67,7.73).
-    #[arg(long, value_delimiter = ',', default_values_t = [REGULATOR_BAR_G.0, REGULATOR_BAR_G.1])]
-    pub regulator_bar: Vec<f64>,
+    /// Transducer noise, locomotive spread and regulator range.
+    pub conditions: Conditions,
+}
+
+impl GenerateOptions {
+    /// The paper's data set (SPEC §6) into `out`: six locomotives, 1100 training and 50 test
+    /// traces per class of the paper's five, two held-out test locomotives, seed 1.
+    pub fn new(out: PathBuf) -> Self {
+        Self {
+            out,
+            locomotives: 6,
+            per_class: 1100,
+            test_per_class: 50,
+            seed: 1,
+            classes: FaultClass::PAPER.to_vec(),
+            split: SplitMode::HeldOut,
+            test_locomotives: 2,
+            threads: 0,
+            force: false,
+            effects: Extensions::NONE,
+            sensor_faults: Vec::new(),
+            conditions: Conditions::SPEC,
+        }
+    }
 }
 
 /// The nuisance conditions of a data set: transducer noise, locomotive spread, regulator range.
@@ -160,65 +176,19 @@ impl Conditions {
     /// SPEC §5.
     pub const SPEC: Self = Self { noise_bar: NOISE_SIGMA_BAR, spread: SPREAD_REL, regulator_bar_g: REGULATOR_BAR_G };
 
-    /// From the command line, checked.
-    pub fn from_args(a: &GenerateArgs) -> Result<Self> {
-        let (lo, hi) = match a.regulator_bar[..] {
-            [lo, hi] => (lo, hi),
-            _ => bail!("--regulator-bar takes LO,HI"),
-        };
-        if !(a.noise_bar.is_finite() && (0.0..=1.0).contains(&a.noise_bar)) {
-            bail!("--noise-bar must be within 0..=1 bar (got {})", a.noise_bar);
+    /// Checks the conditions are ones the generator can draw from.
+    pub fn validate(&self) -> Result<()> {
+        let (lo, hi) = self.regulator_bar_g;
+        if !(self.noise_bar.is_finite() && (0.0..=1.0).contains(&self.noise_bar)) {
+            bail!("transducer noise must be within 0..=1 bar (got {})", self.noise_bar);
         }
-        if !(a.spread.is_finite() && (0.0..0.5).contains(&a.spread)) {
-            bail!("--spread must be within 0..0.5 (got {})", a.spread);
+        if !(self.spread.is_finite() && (0.0..0.5).contains(&self.spread)) {
+            bail!("locomotive spread must be within 0..0.5 (got {})", self.spread);
         }
         if !(lo.is_finite() && hi.is_finite() && 0.5 <= lo && lo <= hi && hi <= 10.0) {
-            bail!("--regulator-bar needs 0.5 ≤ LO ≤ HI ≤ 10 bar g (got {lo},{hi})");
+            bail!("the regulator range needs 0.5 ≤ low ≤ high ≤ 10 bar g (got {lo},{hi})");
         }
-        Ok(Self { noise_bar: a.noise_bar, spread: a.spread, regulator_bar_g: (lo, hi) })
-    }
-}
-
-impl GenerateArgs {
-    /// The command-line defaults with output directory `out` (for tests and other tools).
-    pub fn with_defaults(out: PathBuf) -> Self {
-        #[derive(clap::Parser)]
-        struct Wrapper {
-            #[command(flatten)]
-            args: GenerateArgs,
-        }
-        let mut out_arg = std::ffi::OsString::from("--out=");
-        out_arg.push(out.as_os_str());
-        match <Wrapper as clap::Parser>::try_parse_from([std::ffi::OsString::from("generate"), out_arg]) {
-            Ok(w) => w.args,
-            // Only a change that breaks the defaults themselves can get here.
-            Err(e) => unreachable!("GenerateArgs defaults do not parse: {e}"),
-        }
-    }
-}
-
-fn parse_effect_arg(s: &str) -> Result<(String, f64), String> {
-    let (name, value) = s.split_once('=').ok_or_else(|| format!("expected NAME=VALUE, got `{s}`"))?;
-    let value: f64 = value.trim().parse().map_err(|_| format!("effect `{name}`: `{value}` is not a number"))?;
-    if !value.is_finite() {
-        return Err(format!("effect `{name}`: value must be finite"));
-    }
-    Ok((name.trim().to_owned(), value))
-}
-
-/// Plant effects beyond SPEC §2 applied while generating (the hook for `--effect`), from the
-/// library of [`crate::plant`].
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-#[non_exhaustive]
-pub struct PlantEffects {
-    /// Mechanisms applied to every trace's plant.
-    pub ext: pbm::mechanism::Extensions,
-}
-
-impl PlantEffects {
-    /// Validates `--effect NAME=VALUE` pairs.
-    pub fn from_args(effects: &[(String, f64)]) -> Result<Self> {
-        Ok(Self { ext: crate::plant::extensions_from_pairs(effects)? })
+        Ok(())
     }
 }
 
@@ -352,7 +322,8 @@ impl TraceJob {
     }
 }
 
-/// Parses and canonicalises `--classes` (sorted by class code, duplicates removed).
+/// Parses class labels (as given on a command line) and canonicalises them
+/// ([`canonical_classes`]).
 pub fn parse_classes(labels: &[String]) -> Result<Vec<FaultClass>> {
     let mut classes = Vec::new();
     for l in labels {
@@ -362,25 +333,31 @@ pub fn parse_classes(labels: &[String]) -> Result<Vec<FaultClass>> {
         };
         classes.push(c);
     }
+    canonical_classes(&classes)
+}
+
+/// Classes sorted by class code, duplicates removed; at least one.
+pub fn canonical_classes(classes: &[FaultClass]) -> Result<Vec<FaultClass>> {
+    let mut classes = classes.to_vec();
     classes.sort();
     classes.dedup();
     if classes.is_empty() {
-        bail!("--classes is empty");
+        bail!("no class to generate");
     }
     Ok(classes)
 }
 
 /// The jobs of a data set in manifest order: class by class, training then test.
-pub fn plan(a: &GenerateArgs, classes: &[FaultClass]) -> Result<Vec<TraceJob>> {
+pub fn plan(a: &GenerateOptions, classes: &[FaultClass]) -> Result<Vec<TraceJob>> {
     if a.locomotives == 0 {
-        bail!("--locomotives must be at least 1");
+        bail!("a fleet needs at least 1 locomotive");
     }
     let (train_locos, test_locos): (Vec<usize>, Vec<usize>) = match a.split {
         SplitMode::Shared => ((0..a.locomotives).collect(), (0..a.locomotives).collect()),
         SplitMode::HeldOut => {
             if a.test_locomotives == 0 || a.test_locomotives >= a.locomotives {
                 bail!(
-                    "--split held-out needs 1 ≤ --test-locomotives < --locomotives (got {} of {})",
+                    "held-out test locomotives must be at least 1 and fewer than the fleet (got {} of {})",
                     a.test_locomotives,
                     a.locomotives
                 );
@@ -420,7 +397,7 @@ pub fn run_job(
     job: &TraceJob,
     fleet: &[Locomotive],
     seed: u64,
-    effects: &PlantEffects,
+    effects: &Extensions,
 ) -> Result<(Vec<u16>, TraceTruth)> {
     run_job_with(job, fleet, seed, effects, NOISE_SIGMA_BAR, &[])
 }
@@ -430,14 +407,14 @@ pub fn run_job_with(
     job: &TraceJob,
     fleet: &[Locomotive],
     seed: u64,
-    effects: &PlantEffects,
+    effects: &Extensions,
     noise_bar: f64,
     faults: &[crate::sensor_faults::FaultSpec],
 ) -> Result<(Vec<u16>, TraceTruth)> {
     let loco = fleet.get(job.locomotive).context("locomotive index out of range")?;
     let mut rng = job.rng(seed);
     let mut params = draw_fault(&loco.params, job.class, &mut rng);
-    params.ext = effects.ext;
+    params.ext = *effects;
     let (p, x) = simulate_plant(&params, GENERATE_STEP_S, TRACE_SAMPLES)?;
     let noise = transducer_noise(p.len(), noise_bar, &mut rng);
     let (adc, applied) = crate::sensor_faults::sense_with_faults(&p, &noise, faults, &mut job.fault_rng(seed));
@@ -451,33 +428,27 @@ pub fn run_job_with(
     Ok((adc, truth))
 }
 
-/// A `truth.csv` row (without newline).
-pub fn truth_row(row: &ManifestRow, t: &TraceTruth) -> String {
+/// The fields of a `truth.csv` row ([`TRUTH_COLUMNS`]), formatted.
+pub fn truth_fields(row: &ManifestRow, t: &TraceTruth) -> [String; 16] {
     let p = &t.params;
-    format!(
-        "{},{},{},{},{:.6},{:.6},{:.6},{:.6},{:.4},{:.3},{:.6},{:.4},{:.4},{:.6},{:.6},{:.4}",
-        row.file,
-        row.label,
-        row.locomotive,
-        row.split,
-        p.supply.0,
-        p.orifice.mm(),
-        p.leak.mm(),
-        p.dead_volume_m3 * 1e3,
-        p.preload_n,
-        p.spring_rate_n_per_m,
-        p.discharge_coeff,
-        p.coulomb_n,
-        p.static_n,
-        t.regulator_bar_g,
-        t.final_bar_g,
-        t.final_travel_mm
-    )
-}
-
-/// A `truth.csv` row with the `sensor_fault` column (`;`-joined, empty when none).
-pub fn truth_row_with_faults(row: &ManifestRow, t: &TraceTruth) -> String {
-    format!("{},{}", truth_row(row, t), t.sensor_faults.join(";"))
+    [
+        row.file.clone(),
+        row.label.clone(),
+        row.locomotive.clone(),
+        row.split.clone(),
+        format!("{:.6}", p.supply.0),
+        format!("{:.6}", p.orifice.mm()),
+        format!("{:.6}", p.leak.mm()),
+        format!("{:.6}", p.dead_volume_m3 * 1e3),
+        format!("{:.4}", p.preload_n),
+        format!("{:.3}", p.spring_rate_n_per_m),
+        format!("{:.6}", p.discharge_coeff),
+        format!("{:.4}", p.coulomb_n),
+        format!("{:.4}", p.static_n),
+        format!("{:.6}", t.regulator_bar_g),
+        format!("{:.6}", t.final_bar_g),
+        format!("{:.4}", t.final_travel_mm),
+    ]
 }
 
 /// What `generate` produced.
@@ -494,7 +465,7 @@ pub struct GenerateSummary {
 }
 
 /// Generates a data set; `progress` shows a progress bar on stderr (when it is a terminal).
-pub fn generate(a: &GenerateArgs, progress: bool) -> Result<GenerateSummary> {
+pub fn generate(a: &GenerateOptions, progress: bool) -> Result<GenerateSummary> {
     generate_with(a, progress, |_, _| Ok(())).map(|(summary, _)| summary)
 }
 
@@ -502,15 +473,17 @@ pub fn generate(a: &GenerateArgs, progress: bool) -> Result<GenerateSummary> {
 /// pass (e.g. to compute features without reading 370 MB back); its results come back in
 /// manifest order.
 pub fn generate_with<T: Send>(
-    a: &GenerateArgs,
+    a: &GenerateOptions,
     progress: bool,
     per_trace: impl Fn(&ManifestRow, &[u16]) -> Result<T> + Sync,
 ) -> Result<(GenerateSummary, Vec<T>)> {
     let start = Instant::now();
-    let effects = PlantEffects::from_args(&a.effects)?;
-    let conditions = Conditions::from_args(a)?;
+    let effects = a.effects;
+    effects.validate().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let conditions = a.conditions;
+    conditions.validate()?;
     crate::sensor_faults::check_specs(&a.sensor_faults)?;
-    let classes = parse_classes(&a.classes)?;
+    let classes = canonical_classes(&a.classes)?;
     let jobs = plan(a, &classes)?;
     let fleet = fleet_with(a.seed, a.locomotives, &conditions);
     prepare_out_dir(&a.out, a.force)?;
@@ -568,31 +541,28 @@ pub fn generate_with<T: Send>(
 
     let mut rows = Vec::with_capacity(results.len());
     let with_faults = !a.sensor_faults.is_empty();
-    let mut truth = String::from(TRUTH_HEADER);
+    let mut truth = CsvFile::create(&a.out.join(TRUTH))?;
+    let mut columns = TRUTH_COLUMNS.to_vec();
     if with_faults {
-        truth.push_str(",sensor_fault");
+        columns.push("sensor_fault");
     }
-    truth.push('\n');
+    truth.record(columns)?;
     let mut bytes = 0;
     let mut extras = Vec::with_capacity(results.len());
     for r in results {
         let (row, t, n, extra) = r?;
         extras.push(extra);
-        truth.push_str(&if with_faults { truth_row_with_faults(&row, &t) } else { truth_row(&row, &t) });
-        truth.push('\n');
+        let mut fields = truth_fields(&row, &t).to_vec();
+        if with_faults {
+            fields.push(t.sensor_faults.join(";"));
+        }
+        truth.record(fields)?;
         bytes += n;
         rows.push(row);
     }
-    let mut manifest = Vec::new();
-    write_manifest(&mut manifest, &rows)?;
-    write_file(&a.out.join(MANIFEST), &manifest)?;
-    write_file(&a.out.join(TRUTH), truth.as_bytes())?;
+    truth.finish()?;
+    write_manifest(&a.out.join(MANIFEST), &rows)?;
     Ok((GenerateSummary { traces: rows.len(), bytes, elapsed: start.elapsed(), threads }, extras))
-}
-
-fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
-    let mut f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    f.write_all(bytes).with_context(|| format!("cannot write {}", path.display()))
 }
 
 fn prepare_out_dir(out: &Path, force: bool) -> Result<()> {
@@ -613,8 +583,8 @@ fn prepare_out_dir(out: &Path, force: bool) -> Result<()> {
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))
 }
 
-/// `host-sim generate`.
-pub fn run(a: &GenerateArgs) -> Result<()> {
+/// Generates a data set and says what it wrote (stderr).
+pub fn run(a: &GenerateOptions) -> Result<()> {
     let s = generate(a, true)?;
     eprintln!(
         "wrote {} traces ({:.1} MB) and {MANIFEST}, {TRUTH} to {} in {:.2} s on {} threads",

@@ -49,7 +49,7 @@ use crate::audit::{
     BIC_THRESHOLD, MIN_RSS_RATIO,
 };
 use crate::random::{normal_pair, unit};
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use pbm::mechanism::Extensions;
 use pbm::mechanism::Mechanism;
 use pbm::params::{KAPPA, TEMPERATURE_K};
@@ -62,64 +62,10 @@ use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-/// Default location of the data, relative to the repository root.
-pub const DEFAULT_PATH: &str = "../shared/data/metropt3_head.csv";
+pub use pbm_io::metro::{read_metro, MetroRow};
 
-/// One row of the MetroPT-3 extract.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct MetroRow {
-    /// Seconds since the first row.
-    pub t_s: f64,
-    /// Reservoir pressure TP3, bar.
-    pub tp3_bar: f64,
-    /// Compressor loaded (COMP < 0.5).
-    pub loaded: bool,
-    /// Oil (compressor outlet) temperature, °C.
-    pub oil_c: f64,
-}
-
-fn parse_time(s: &str) -> Option<f64> {
-    // `YYYY-MM-DD hh:mm:ss`; rows of the extract lie within one day or span midnight once.
-    let (date, time) = s.trim().split_once(' ')?;
-    let day: f64 = date.rsplit('-').next()?.parse().ok()?;
-    let mut it = time.split(':').map(|v| v.parse::<f64>().ok());
-    let (h, m, sec) = (it.next()??, it.next()??, it.next()??);
-    Some(day * 86_400.0 + h * 3600.0 + m * 60.0 + sec)
-}
-
-/// Reads the CSV (header with `timestamp`, `TP3`, `COMP`, `Oil_temperature`).
-pub fn read_metro(path: &Path) -> Result<Vec<MetroRow>> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let mut lines = text.lines().enumerate();
-    let (_, header) = lines.next().with_context(|| format!("{}: empty file", path.display()))?;
-    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
-    let col = |name: &str| {
-        cols.iter().position(|c| *c == name).with_context(|| format!("{}: no column `{name}`", path.display()))
-    };
-    let (ct, cp, cc, co) = (col("timestamp")?, col("TP3")?, col("COMP")?, col("Oil_temperature")?);
-    let mut rows = Vec::new();
-    let mut t0 = None;
-    for (i, line) in lines {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let f: Vec<&str> = line.split(',').collect();
-        let bad = || format!("{}:{}: malformed row", path.display(), i + 1);
-        let t = f.get(ct).and_then(|s| parse_time(s)).with_context(bad)?;
-        let num = |c: usize| f.get(c).and_then(|s| s.trim().parse::<f64>().ok()).filter(|v| v.is_finite());
-        let (p, comp, oil) = (num(cp).with_context(bad)?, num(cc).with_context(bad)?, num(co).with_context(bad)?);
-        let t0 = *t0.get_or_insert(t);
-        let t_s = t - t0;
-        if rows.last().is_some_and(|r: &MetroRow| t_s <= r.t_s) {
-            bail!("{}:{}: time is not increasing", path.display(), i + 1);
-        }
-        rows.push(MetroRow { t_s, tp3_bar: p, loaded: comp < 0.5, oil_c: oil });
-    }
-    if rows.len() < 20 {
-        bail!("{}: only {} rows", path.display(), rows.len());
-    }
-    Ok(rows)
-}
+/// Default location of the data: the repository's extract, relative to the repository root.
+pub const DEFAULT_PATH: &str = pbm_io::metro::EXTRACT;
 
 /// The candidates of the metro audit: the brake library's mechanisms that the reservoir has
 /// (`regulator_droop`, `progressive_spring` and `gas_temperature` have no counterpart: no
@@ -418,26 +364,25 @@ pub fn synthetic_rows(params: &ReservoirParams, n_rows: usize, sigma_bar: f64, s
     rows
 }
 
-/// Options of `host-sim audit-metro`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct MetroArgs {
-    /// The MetroPT-3 CSV extract (SPEC §8).
-    #[arg(default_value = DEFAULT_PATH)]
-    pub path: PathBuf,
-    /// Write the verdict as JSON (same keys as `host-sim audit --json`).
-    #[arg(long)]
+/// Options of the audit-metro run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MetroOptions {
+    /// Write the verdict as JSON (the brake audit's keys).
     pub json: Option<PathBuf>,
     /// Plots: a `.svg` file (measured vs adiabatic vs extended), or a directory that receives
     /// `metro_curves.svg` and `metro_residual.svg`.
-    #[arg(long)]
     pub plot: Option<PathBuf>,
     /// Instead of the file: a sweep of this many synthetic records, each with one mechanism
-    /// hidden at a magnitude drawn from `--seed` (see [`synthetic_sweep`]); prints the hit rate.
-    #[arg(long, value_name = "CASES")]
+    /// hidden at a magnitude drawn from `seed` (see [`synthetic_sweep`]); prints the hit rate.
     pub synthetic_sweep: Option<usize>,
-    /// Seed of `--synthetic-sweep`.
-    #[arg(long, default_value_t = 1)]
+    /// Seed of the synthetic sweep.
     pub seed: u64,
+}
+
+impl Default for MetroOptions {
+    fn default() -> Self {
+        Self { json: None, plot: None, synthetic_sweep: None, seed: 1 }
+    }
 }
 
 /// Base point of the synthetic records in the fit's unit box: 8.9 g/s, 0.4 mm (close to the
@@ -766,7 +711,7 @@ impl MetroOutcome {
 
     /// JSON verdict: the brake audit's format ([`crate::audit::AuditOutcome::to_json`]) without
     /// the per-trace NMSEs (one record).
-    pub fn to_json(&self) -> String {
+    pub fn to_json(&self) -> serde_json::Value {
         verdict_json(&VerdictJson {
             cause: &self.cause,
             causes: self.chosen.json_effects(),
@@ -867,7 +812,7 @@ pub fn audit_metro_file(path: &Path) -> Result<(Vec<MetroRow>, MetroOutcome)> {
     Ok((rows, out))
 }
 
-/// Writes the JSON verdict and the plots (see [`MetroArgs::plot`]) that were asked for.
+/// Writes the JSON verdict and the plots (see [`MetroOptions::plot`]) that were asked for.
 pub fn write_metro_outputs(
     rows: &[MetroRow],
     out: &MetroOutcome,
@@ -875,7 +820,7 @@ pub fn write_metro_outputs(
     plot: Option<&Path>,
 ) -> Result<()> {
     if let Some(p) = json {
-        std::fs::write(p, out.to_json()).with_context(|| format!("cannot write {}", p.display()))?;
+        pbm_io::table::write_json(p, &out.to_json())?;
     }
     if let Some(p) = plot {
         let write =
@@ -891,13 +836,14 @@ pub fn write_metro_outputs(
     Ok(())
 }
 
-/// `host-sim audit-metro`.
-pub fn run(a: &MetroArgs) -> Result<()> {
+/// The audit of a MetroPT-3 record in `path` (or the synthetic sweep of `a`): the summary on
+/// stdout, the outputs of `a` written.
+pub fn run(path: &Path, a: &MetroOptions) -> Result<()> {
     if let Some(cases) = a.synthetic_sweep {
         print!("{}", sweep_summary(&synthetic_sweep(cases, a.seed)?));
         return Ok(());
     }
-    let (rows, out) = audit_metro_file(&a.path)?;
+    let (rows, out) = audit_metro_file(path)?;
     print!("{}", out.summary());
     write_metro_outputs(&rows, &out, a.json.as_deref(), a.plot.as_deref())
 }

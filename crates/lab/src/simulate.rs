@@ -5,11 +5,12 @@ use pbm::twin::SAMPLE_PERIOD_S;
 use pbm::{ParamError, Twin, TwinParams};
 
 /// Which implementation of the twin to run.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Engine {
     /// The fixed-point core twin (what the controller runs).
     Fixed,
-    /// The f64 reference of host-sim.
+    /// The independent f64 reference.
     F64,
 }
 
@@ -82,14 +83,71 @@ pub fn time_at_end_stop(trace: &[SimSample], stroke_mm: f64) -> Option<f64> {
     trace.iter().find(|s| s.x_mm >= stroke_mm - 1e-3).map(|s| s.t_s)
 }
 
-/// Writes a trace as SPEC §7 CSV: metadata comments, then `t_s,p_bar,x_mm`.
-pub fn write_csv(w: &mut impl std::io::Write, trace: &[SimSample], meta: &[(&str, String)]) -> std::io::Result<()> {
-    for (k, v) in meta {
-        writeln!(w, "# {k}: {v}")?;
-    }
-    writeln!(w, "t_s,p_bar,x_mm")?;
+/// Writes a trace as SPEC §7 CSV: metadata comments, then `t_s,p_bar,x_mm` rows (csv crate).
+pub fn write_csv(w: &mut impl std::io::Write, trace: &[SimSample], meta: &[(&str, String)]) -> anyhow::Result<()> {
+    pbm_io::trace::write_metadata(w, meta)?;
+    let mut out = csv::Writer::from_writer(w);
+    out.write_record(["t_s", "p_bar", "x_mm"])?;
     for s in trace {
-        writeln!(w, "{:.2},{:.6},{:.4}", s.t_s, s.p_bar, s.x_mm)?;
+        out.write_record([format!("{:.2}", s.t_s), format!("{:.6}", s.p_bar), format!("{:.4}", s.x_mm)])?;
+    }
+    out.flush()?;
+    Ok(())
+}
+
+/// One noise-free release to simulate and where to write it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SimulateOptions {
+    /// Twin implementation.
+    pub engine: Engine,
+    /// The brake (supply, orifice, leak and the rest).
+    pub params: TwinParams,
+    /// Duration, s (0 < d ≤ 3600).
+    pub duration_s: f64,
+    /// Output file (`None`: standard output).
+    pub out: Option<std::path::PathBuf>,
+    /// Also write an SVG of the release (pressure from both engines, piston travel).
+    pub plot: Option<std::path::PathBuf>,
+}
+
+impl Default for SimulateOptions {
+    fn default() -> Self {
+        Self { engine: Engine::Fixed, params: TwinParams::nominal(), duration_s: 60.0, out: None, plot: None }
+    }
+}
+
+/// Simulates one release and writes its trace (and plot).
+pub fn run(a: &SimulateOptions) -> anyhow::Result<()> {
+    use anyhow::Context as _;
+    if !(a.duration_s.is_finite() && a.duration_s > 0.0 && a.duration_s <= 3600.0) {
+        anyhow::bail!("the duration must be in (0, 3600] s, got {}", a.duration_s);
+    }
+    let trace = simulate(a.engine, &a.params, a.duration_s).map_err(|e| anyhow::anyhow!("invalid parameters: {e}"))?;
+    if let Some(path) = &a.plot {
+        write_release_svg(path, &a.params, a.duration_s)?;
+    }
+    let engine = match a.engine {
+        Engine::Fixed => "fixed-point twin",
+        Engine::F64 => "f64 reference",
+    };
+    let meta = [
+        ("source", format!("simulated release, {engine}")),
+        ("orifice_mm", a.params.orifice.mm().to_string()),
+        ("leak_mm", a.params.leak.mm().to_string()),
+        ("supply_bar", a.params.supply.0.to_string()),
+    ];
+    match &a.out {
+        Some(path) => {
+            let f = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
+            let mut w = std::io::BufWriter::new(f);
+            write_csv(&mut w, &trace, &meta)?;
+            std::io::Write::flush(&mut w).with_context(|| format!("cannot write {}", path.display()))?;
+        }
+        None => {
+            let mut w = std::io::BufWriter::new(std::io::stdout().lock());
+            write_csv(&mut w, &trace, &meta)?;
+            std::io::Write::flush(&mut w)?;
+        }
     }
     Ok(())
 }

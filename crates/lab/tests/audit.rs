@@ -11,11 +11,12 @@
 //! `cargo test -p host-sim --test audit -- --ignored` (≈ 3 min on 2 cores), and the full one is
 //! `host-sim audit-sweep --cases 200 --pairs 40 --null-cases 20` (bench/audit_sweep.md).
 
+use pbm::mechanism::Extensions;
 use pbm::mechanism::Mechanism;
 use pbm_lab::audit::{audit, audit_dir, AuditOptions};
 use pbm_lab::audit_plot::write_outputs;
 use pbm_lab::audit_sweep::{check_case, draw_case, draw_case_with, synth_data, RELEASES_PER_CASE};
-use pbm_lab::generate::{generate, GenerateArgs, SplitMode};
+use pbm_lab::generate::{generate, GenerateOptions, SplitMode};
 
 fn first_seed(default: u64) -> u64 {
     std::env::var("AUDIT_TEST_SEED").ok().and_then(|s| s.parse().ok()).unwrap_or(default)
@@ -49,7 +50,7 @@ fn clean_plant_gives_none() {
     eprint!("{}", out.summary());
     assert_eq!(out.cause, "none", "clean data must not be blamed on a mechanism");
     assert!(out.cause_effects.is_empty());
-    assert!(out.to_json().contains("\"cause\": \"none\""));
+    assert_eq!(out.to_json()["cause"], "none");
 }
 
 /// The documented workflow: `host-sim generate` one locomotive's releases with a hidden effect,
@@ -58,17 +59,26 @@ fn clean_plant_gives_none() {
 fn generate_then_audit_directory() {
     let dir = tempfile::tempdir().expect("tempdir");
     let data = dir.path().join("data");
-    let mut g = GenerateArgs::with_defaults(data.clone());
+    let mut g = GenerateOptions::new(data.clone());
     g.locomotives = 1;
     g.split = SplitMode::Shared;
-    g.classes = vec!["normal".to_owned()];
+    g.classes = vec![pbm::FaultClass::Normal];
     g.per_class = 12;
     g.test_per_class = 0;
     g.seed = 5;
-    g.effects = vec![("valve_lag".to_owned(), 0.45)];
+    g.effects = Extensions::NONE.with(Mechanism::ValveLag, 0.45);
     generate(&g, false).expect("generate");
 
-    let out = audit_dir(&data).expect("audit");
+    // A trace with no samples and a locomotive name with a quote: the empty trace is skipped
+    // with its reason, the rest is audited, and the JSON stays valid.
+    let manifest = std::fs::read_to_string(data.join("manifest.csv")).unwrap().replace("loco-01", "loco \"\"1\"\"");
+    let manifest = manifest.replacen("\n", "\n\"empty.csv\",normal,\"loco \"\"1\"\"\",train\n", 1);
+    std::fs::write(data.join("manifest.csv"), manifest).unwrap();
+    std::fs::write(data.join("empty.csv"), "t_s,adc\n").unwrap();
+
+    let (out, skipped) = audit_dir(&data).expect("audit");
+    assert_eq!(skipped.len(), 1, "{skipped}");
+    assert!(skipped.errors()[0].to_string().contains("empty.csv"), "{skipped}");
     eprint!("{}", out.summary());
     assert_eq!(out.cause, "valve_lag");
     let m = out.magnitude();
@@ -80,6 +90,8 @@ fn generate_then_audit_directory() {
     let report = dir.path().join("report.html");
     write_outputs(&out, Some(&json), Some(&plots), Some(&report)).expect("outputs");
     let text = std::fs::read_to_string(&json).expect("json");
+    let parsed: serde_json::Value = serde_json::from_str(&text).expect("valid JSON");
+    assert_eq!(parsed["cause"], "valve_lag");
     for key in
         ["\"cause\": \"valve_lag\"", "\"magnitude\": 0.4", "\"nmse_base_pct\"", "\"nmse_extended_pct\"", "\"ranking\""]
     {

@@ -192,11 +192,12 @@ proptest! {
 #[test]
 fn replayed_data_set_log_decodes_cleanly_across_traces() {
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tests/data/small");
-    let items = pbm_lab::replay::items(std::path::Path::new(data), None).unwrap();
-    assert!(items.len() >= 2);
+    let (items, skipped) = pbm_lab::replay::items(std::path::Path::new(data), None).unwrap();
+    assert!(items.len() >= 2 && skipped.is_empty());
     let dir = tempfile::tempdir().unwrap();
     let log = dir.path().join("small.log");
-    let written = pbm_lab::replay::write_replay_can_log(&log, &items).unwrap();
+    let (written, skipped) = pbm_lab::replay::replay_to_can_log(&log, &items).unwrap();
+    assert!(skipped.is_empty(), "{skipped}");
     let text = std::fs::read(&log).unwrap();
     let frames: Vec<CanFrame> = read_log(&text[..]).map(|r| r.unwrap().frame).collect();
     assert_eq!(frames.len() as u64, written);
@@ -210,6 +211,39 @@ fn replayed_data_set_log_decodes_cleanly_across_traces() {
     assert_eq!(s.fault_reports, items.len() as u64, "one closed diagnosis per trace: {s}");
     let text = String::from_utf8(out).unwrap();
     assert_eq!(text.matches("-- no heartbeat").count(), items.len() - 1);
+}
+
+/// A malformed trace in the middle of a data set costs only its own frames: the log holds one
+/// closed diagnosis for every other trace, and the bad one is reported with its line.
+#[test]
+fn malformed_trace_is_skipped_and_the_can_log_holds_the_rest() {
+    let data = std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../tests/data/small"));
+    let tmp = tempfile::tempdir().unwrap();
+    let set = tmp.path().join("set");
+    let rows = pbm_io::dataset::read_manifest(data).unwrap();
+    for r in &rows {
+        let to = set.join(&r.file);
+        std::fs::create_dir_all(to.parent().unwrap()).unwrap();
+        std::fs::copy(data.join(&r.file), &to).unwrap();
+    }
+    std::fs::copy(data.join("manifest.csv"), set.join("manifest.csv")).unwrap();
+    let bad = set.join(&rows[3].file);
+    let text = std::fs::read_to_string(&bad).unwrap().replacen("\n3.00,", "\n3.00,oops,", 1);
+    std::fs::write(&bad, text).unwrap();
+
+    let (items, _) = pbm_lab::replay::items(&set, None).unwrap();
+    let log = tmp.path().join("set.log");
+    let (written, skipped) = pbm_lab::replay::replay_to_can_log(&log, &items).unwrap();
+    assert_eq!(skipped.len(), 1, "{skipped}");
+    assert!(skipped.errors()[0].to_string().contains(&format!("{}:", rows[3].file)), "{skipped}");
+    let bytes = std::fs::read(&log).unwrap();
+    let mut out = Vec::new();
+    let mut d = CabDisplay::new(&mut out, false, DecodeFormat::Text);
+    decode_log(&bytes[..], &mut d).unwrap();
+    let s = d.finish().unwrap();
+    assert_eq!(s.frames, written);
+    assert_eq!(s.flagged_total(), 0, "{s}");
+    assert_eq!(s.fault_reports, items.len() as u64 - 1, "{s}");
 }
 
 /// A monitor that restarts within the heartbeat timeout is not trusted at once: its first

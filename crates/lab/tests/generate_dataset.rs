@@ -1,14 +1,16 @@
 //! `host-sim generate`: determinism (seed, thread count, class subset), the SPEC §4/§5
 //! distributions of the drawn parameters, the held-out locomotive split, and argument errors.
 
+use pbm::mechanism::{Extensions, Mechanism};
+use pbm::FaultClass;
 use pbm_io::dataset::{read_manifest, MANIFEST, TRUTH};
 use pbm_io::trace::{read_trace, Samples};
-use pbm_lab::generate::{generate, GenerateArgs, SplitMode};
+use pbm_lab::generate::{generate, parse_classes, GenerateOptions, SplitMode};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
-fn args(out: &Path) -> GenerateArgs {
-    let mut a = GenerateArgs::with_defaults(out.to_owned());
+fn args(out: &Path) -> GenerateOptions {
+    let mut a = GenerateOptions::new(out.to_owned());
     a.per_class = 2;
     a.test_per_class = 1;
     a.seed = 11;
@@ -62,7 +64,7 @@ fn a_trace_does_not_depend_on_the_other_classes_or_counts() {
     let full = args(&tmp.path().join("full"));
     generate(&full, false).unwrap();
     let mut one = args(&tmp.path().join("one"));
-    one.classes = vec!["air_leak".to_owned()];
+    one.classes = vec![FaultClass::AirLeak];
     one.per_class = 1;
     one.test_per_class = 1;
     generate(&one, false).unwrap();
@@ -85,9 +87,10 @@ fn parameters_follow_the_spec_distributions() {
     let mut a = args(&tmp.path().join("set"));
     a.per_class = 12;
     a.test_per_class = 4;
-    a.classes = ["normal", "air_leak", "orifice_block", "leak_and_block", "low_supply", "orifice_missing"]
-        .map(str::to_owned)
-        .to_vec();
+    a.classes = parse_classes(
+        &["normal", "air_leak", "orifice_block", "leak_and_block", "low_supply", "orifice_missing"].map(str::to_owned),
+    )
+    .unwrap();
     generate(&a, false).unwrap();
 
     let manifest = read_manifest(&a.out).unwrap();
@@ -172,7 +175,7 @@ fn shared_split_uses_every_locomotive_in_both_splits() {
     let tmp = tempfile::tempdir().unwrap();
     let mut a = args(&tmp.path().join("set"));
     a.split = SplitMode::Shared;
-    a.classes = vec!["normal".to_owned()];
+    a.classes = vec![FaultClass::Normal];
     a.per_class = 6;
     a.test_per_class = 6;
     generate(&a, false).unwrap();
@@ -186,16 +189,15 @@ fn shared_split_uses_every_locomotive_in_both_splits() {
 #[test]
 fn bad_arguments_are_clear_errors() {
     let tmp = tempfile::tempdir().unwrap();
-    let check = |a: &GenerateArgs, needle: &str| {
+    let check = |a: &GenerateOptions, needle: &str| {
         let e = generate(a, false).expect_err("must fail").to_string();
         assert!(e.contains(needle), "{e:?} should mention {needle:?}");
     };
     let mut a = args(&tmp.path().join("x"));
-    a.effects = vec![("valve_delay_s".to_owned(), 0.2)];
-    check(&a, "unknown plant effect `valve_delay_s`");
-    let mut a = args(&tmp.path().join("x"));
-    a.classes = vec!["broken_spring".to_owned()];
-    check(&a, "unknown class `broken_spring`");
+    a.effects = Extensions::NONE.with(Mechanism::TransportDelay, 99.0);
+    check(&a, "transport_delay");
+    let e = parse_classes(&["broken_spring".to_owned()]).expect_err("unknown class").to_string();
+    assert!(e.contains("unknown class `broken_spring`"), "{e}");
     let mut a = args(&tmp.path().join("x"));
     a.test_locomotives = 6;
     check(&a, "--test-locomotives");

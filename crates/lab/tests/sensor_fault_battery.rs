@@ -7,20 +7,19 @@
 
 use pbm::report::{NoDiagnosis, Verdict};
 use pbm::FaultClass;
-use pbm_io::dataset::{read_manifest, trace_path};
-use pbm_io::trace::read_trace;
-use pbm_lab::generate::{generate, GenerateArgs};
+use pbm_io::dataset::Dataset;
+use pbm_lab::generate::{generate, GenerateOptions};
 use pbm_lab::replay::replay_trace_with_diagnosis;
 use pbm_lab::sensor_faults::parse_spec;
 use std::path::Path;
 
 /// Verdicts of every trace of a data set: (true class, verdict at the close).
 fn verdicts(dir: &Path) -> Vec<(FaultClass, Verdict)> {
-    read_manifest(dir)
-        .unwrap()
+    let data = Dataset::open(dir).unwrap();
+    data.rows()
         .iter()
         .map(|row| {
-            let trace = read_trace(&trace_path(dir, row)).unwrap();
+            let trace = data.read_trace(row).unwrap();
             let (_, report) = replay_trace_with_diagnosis(&trace).unwrap();
             (FaultClass::from_label(&row.label).unwrap(), report.expect("a diagnosis closes").verdict)
         })
@@ -29,7 +28,7 @@ fn verdicts(dir: &Path) -> Vec<(FaultClass, Verdict)> {
 
 fn battery(spec: Option<&str>, seed: u64) -> Vec<(FaultClass, Verdict)> {
     let tmp = tempfile::tempdir().unwrap();
-    let mut a = GenerateArgs::with_defaults(tmp.path().join("d"));
+    let mut a = GenerateOptions::new(tmp.path().join("d"));
     a.locomotives = 3;
     a.test_locomotives = 1;
     a.per_class = 0;

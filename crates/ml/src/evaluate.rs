@@ -14,33 +14,34 @@ use crate::train::{
 use anyhow::{bail, Context, Result};
 use pbm::report::Verdict;
 use pbm::FaultClass;
+use pbm_io::error::Skipped;
 use plotters::prelude::*;
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-/// Options of `host-sim evaluate`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct EvaluateArgs {
+/// Options of the evaluate run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EvaluateOptions {
     /// Data set directory; rows with split `test` are evaluated.
     pub dataset: PathBuf,
-    /// Directory of the models written by `host-sim train`.
-    #[arg(long, default_value = "models")]
+    /// Directory of the trained models.
     pub models: PathBuf,
     /// Write the results as JSON.
-    #[arg(long)]
     pub json: Option<PathBuf>,
     /// Write SVG plots (confusion matrices, accuracy vs time) into this directory.
-    #[arg(long)]
     pub plot: Option<PathBuf>,
     /// Also run leave-one-locomotive-out for ours (retrains once per locomotive on all splits).
-    #[arg(long)]
     pub lolo: bool,
     /// Also print the confusion matrix of ours (int8) at every snapshot time.
-    #[arg(long)]
     pub verbose: bool,
     /// Seed for the leave-one-locomotive-out training.
-    #[arg(long, default_value_t = 1)]
     pub seed: u64,
+}
+
+impl EvaluateOptions {
+    /// Evaluates `dataset` with the models in `models/`.
+    pub fn new(dataset: PathBuf) -> Self {
+        Self { dataset, models: PathBuf::from("models"), json: None, plot: None, lolo: false, verbose: false, seed: 1 }
+    }
 }
 
 /// Outcome of one classifier on one trace: a class index, or 'cannot diagnose'.
@@ -250,9 +251,10 @@ pub fn score_all(
     Ok((scores, agree))
 }
 
-/// `host-sim evaluate`.
-pub fn run(a: &EvaluateArgs) -> Result<()> {
-    let test = dataset_features(&a.dataset, Some("test"))?;
+/// Evaluates the trained models on the data set's test split: the table on stdout, JSON and
+/// plots when asked; returns the traces skipped.
+pub fn run(a: &EvaluateOptions) -> Result<Skipped> {
+    let (test, mut skipped) = dataset_features(&a.dataset, Some("test"))?;
     let mut nets = Vec::new();
     let mut classes: Option<Vec<FaultClass>> = None;
     for k in Kind::ALL {
@@ -300,7 +302,13 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
         100.0 * ok as f64 / test.len().max(1) as f64
     };
     let lolo = if a.lolo {
-        let all = dataset_features(&a.dataset, None)?;
+        let (all, more) = dataset_features(&a.dataset, None)?;
+        // The test split's skipped traces are in `more` again; keep each once.
+        for e in more.errors() {
+            if !skipped.errors().contains(e) {
+                skipped.push(e.clone());
+            }
+        }
         Some(leave_one_locomotive_out(&all, a.seed)?)
     } else {
         None
@@ -378,8 +386,10 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
         println!("  overall    {tot:>5} traces  {wf:>6.2} %  {wq:>6.2} %");
     }
     if let Some(path) = &a.json {
-        std::fs::write(path, json(&classes, &scores, agree, test.len(), &curve, stable10, lolo.as_deref()))
-            .with_context(|| format!("cannot write {}", path.display()))?;
+        pbm_io::table::write_json(
+            path,
+            &json(&classes, &scores, agree, test.len(), &curve, stable10, lolo.as_deref()),
+        )?;
     }
     if let Some(dir) = &a.plot {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
@@ -388,13 +398,14 @@ pub fn run(a: &EvaluateArgs) -> Result<()> {
         plot_reliability(&dir.join("reliability.svg"), &bins, ece)?;
         println!("plots written to {}", dir.display());
     }
-    Ok(())
+    Ok(skipped)
 }
 
 fn labels(classes: &[FaultClass]) -> Vec<&'static str> {
     classes.iter().map(|c| c.label()).collect()
 }
 
+/// The `--json` document of an evaluation (serde_json: every string escaped).
 fn json(
     classes: &[FaultClass],
     scores: &[Score],
@@ -403,50 +414,30 @@ fn json(
     curve: &[(f64, f64, f64)],
     stable10: f64,
     lolo: Option<&[(String, usize, f64, f64)]>,
-) -> String {
-    let mut s = String::from("{\n");
-    let quoted = |v: &[&str]| v.iter().map(|l| format!("\"{l}\"")).collect::<Vec<_>>().join(", ");
-    let _ = writeln!(s, "  \"classes\": [{}],", quoted(&labels(classes)));
-    let _ = writeln!(
-        s,
-        "  \"paper_reported_pct\": {{\"paper_raw\": 72.0, \"paper_residual\": 81.2, \"paper_theta\": 96.0}},"
-    );
-    let _ = writeln!(s, "  \"classifiers\": [");
-    for (i, sc) in scores.iter().enumerate() {
-        let rows: Vec<String> = sc
-            .confusion
-            .iter()
-            .map(|r| format!("[{}]", r.iter().map(|v| v.to_string()).collect::<Vec<_>>().join(", ")))
-            .collect();
-        let _ = writeln!(
-            s,
-            "    {{\"name\": \"{}\", \"accuracy_pct\": {:.3}, \"correct\": {}, \"total\": {}, \"undiagnosed\": {}, \"confusion\": [{}]}}{}",
-            sc.name,
-            sc.accuracy_pct(),
-            sc.correct,
-            sc.total,
-            sc.undiagnosed,
-            rows.join(", "),
-            if i + 1 < scores.len() { "," } else { "" }
-        );
-    }
-    let _ = writeln!(s, "  ],");
-    let _ = writeln!(s, "  \"int8_f64_agreement\": {{\"agree\": {agree}, \"total\": {total}}},");
-    let pts: Vec<String> =
-        curve.iter().map(|(t, f, q)| format!("{{\"t_s\": {t}, \"f64_pct\": {f:.3}, \"int8_pct\": {q:.3}}}")).collect();
-    let _ = writeln!(s, "  \"accuracy_vs_time\": [{}],", pts.join(", "));
-    let _ = write!(s, "  \"stable_correct_by_10s_pct\": {stable10:.3}");
+) -> serde_json::Value {
+    use serde_json::json;
+    let mut doc = json!({
+        "classes": labels(classes),
+        "paper_reported_pct": {"paper_raw": 72.0, "paper_residual": 81.2, "paper_theta": 96.0},
+        "classifiers": scores.iter().map(|sc| json!({
+            "name": sc.name,
+            "accuracy_pct": sc.accuracy_pct(),
+            "correct": sc.correct,
+            "total": sc.total,
+            "undiagnosed": sc.undiagnosed,
+            "confusion": sc.confusion,
+        })).collect::<Vec<_>>(),
+        "int8_f64_agreement": {"agree": agree, "total": total},
+        "accuracy_vs_time": curve.iter().map(|&(t, f, q)| json!({"t_s": t, "f64_pct": f, "int8_pct": q})).collect::<Vec<_>>(),
+        "stable_correct_by_10s_pct": stable10,
+    });
     if let Some(l) = lolo {
-        let rows: Vec<String> = l
+        doc["leave_one_locomotive_out"] = l
             .iter()
-            .map(|(loco, n, f, q)| {
-                format!("{{\"locomotive\": \"{loco}\", \"traces\": {n}, \"f64_pct\": {f:.3}, \"int8_pct\": {q:.3}}}")
-            })
+            .map(|(loco, n, f, q)| json!({"locomotive": loco, "traces": n, "f64_pct": f, "int8_pct": q}))
             .collect();
-        let _ = write!(s, ",\n  \"leave_one_locomotive_out\": [{}]", rows.join(", "));
     }
-    s.push_str("\n}\n");
-    s
+    doc
 }
 
 fn plot_err<E: std::fmt::Display>(e: E) -> anyhow::Error {
@@ -540,4 +531,28 @@ fn plot_curve(path: &Path, curve: &[(f64, f64, f64)]) -> Result<()> {
         .legend(|(x, y)| PathElement::new([(x, y), (x + 16, y)], RED));
     chart.configure_series_labels().border_style(BLACK).background_style(WHITE).draw().map_err(plot_err)?;
     root.present().map_err(plot_err)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A locomotive name with quotes, a backslash and a newline stays one JSON string.
+    #[test]
+    fn json_escapes_every_name() {
+        let loco = "loco \"7\" \\ east\nline".to_owned();
+        let scores = [Score {
+            name: "ours \"int8\"".into(),
+            correct: 1,
+            total: 2,
+            undiagnosed: 0,
+            confusion: vec![vec![1, 1, 0]],
+        }];
+        let lolo = [(loco.clone(), 2, 50.0, 50.0)];
+        let doc = json(&[FaultClass::Normal], &scores, 1, 2, &[(1.0, 50.0, 50.0)], 50.0, Some(&lolo));
+        let text = serde_json::to_string_pretty(&doc).unwrap();
+        let back: serde_json::Value = serde_json::from_str(&text).unwrap();
+        assert_eq!(back["leave_one_locomotive_out"][0]["locomotive"], loco.as_str());
+        assert_eq!(back["classifiers"][0]["name"], "ours \"int8\"");
+    }
 }

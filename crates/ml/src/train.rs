@@ -25,11 +25,10 @@ use anyhow::{bail, Context, Result};
 use pbm::classifier::{QuantLayer, QuantModel};
 use pbm::features::{FeatureExtractor, N_OURS, N_STATS, N_THETA};
 use pbm::monitor::Monitor;
-use pbm::sensor::adc_from_bar;
-use pbm::units::{AdcCounts, BarG};
+use pbm::units::AdcCounts;
 use pbm::{FaultClass, TwinParams};
-use pbm_io::dataset::{read_manifest, trace_path, ManifestRow};
-use pbm_io::trace::{read_trace, Samples};
+use pbm_io::dataset::{Dataset, ManifestRow};
+use pbm_io::error::{FileError, Skipped};
 use rayon::prelude::*;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -39,33 +38,42 @@ use std::path::{Path, PathBuf};
 pub const SNAPSHOT_TIMES_S: [f64; 18] =
     [1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0, 10.0, 12.0, 15.0, 20.0, 25.0, 30.0, 40.0, 50.0, 59.99];
 
-/// Options of `host-sim train`.
-#[derive(Debug, Clone, clap::Args)]
-pub struct TrainArgs {
+/// Options of the train run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TrainOptions {
     /// Data set directory (manifest.csv + traces); rows with split `train` are used.
     pub dataset: PathBuf,
     /// Directory for the trained models (created).
-    #[arg(long, default_value = "models")]
     pub out: PathBuf,
     /// Seed of initialisation, validation split and shuffling: same seed, same models.
-    #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Also write the int8 model as Rust source for the core (e.g. src/classifier/model_weights.rs).
-    #[arg(long)]
     pub export_rs: Option<PathBuf>,
     /// Also write golden vectors (features → int8 logits, class) for the exported model.
-    #[arg(long)]
     pub golden: Option<PathBuf>,
     /// Also train ours on a copy of every training release whose air arrives up to 0.3 s late
     /// (a transport delay). Off by default: the core's features are delay-robust by design and,
     /// measured on the paper-size set, the copies cost early accuracy.
-    #[arg(long)]
     pub augment: bool,
     /// Train nothing: keep the network compiled into the core and only recompute its class
-    /// regions (the out-of-distribution guard) from DATASET's training releases; with
-    /// --export-rs, write it back as the core's model source.
-    #[arg(long)]
+    /// regions (the out-of-distribution guard) from the data set's training releases; with
+    /// `export_rs`, write it back as the core's model source.
     pub refit_region: bool,
+}
+
+impl TrainOptions {
+    /// Trains on `dataset` into `models/`, seed 1, nothing exported.
+    pub fn new(dataset: PathBuf) -> Self {
+        Self {
+            dataset,
+            out: PathBuf::from("models"),
+            seed: 1,
+            export_rs: None,
+            golden: None,
+            augment: false,
+            refit_region: false,
+        }
+    }
 }
 
 /// Everything a classifier needs from one trace.
@@ -93,15 +101,17 @@ pub struct TraceFeatures {
 }
 
 /// Replays one trace through the core and collects its features.
-pub fn trace_features(dir: &Path, row: &ManifestRow) -> Result<TraceFeatures> {
-    let class =
-        FaultClass::from_label(&row.label).with_context(|| format!("{}: unknown label `{}`", row.file, row.label))?;
-    let trace = read_trace(&trace_path(dir, row)).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let adc: Vec<AdcCounts> = match &trace.samples {
-        Samples::Adc(v) => v.iter().map(|&c| AdcCounts(c)).collect(),
-        Samples::Bar(v) => v.iter().map(|&p| adc_from_bar(BarG(p))).collect(),
-    };
-    features_from_adc(row, class, &adc)
+pub fn trace_features(data: &Dataset, row: &ManifestRow) -> Result<TraceFeatures, FileError> {
+    let (class, adc) = labelled_adc(data, row)?;
+    features_from_adc(row, class, &adc).map_err(|e| FileError::new(&row.file, 0, format!("{e:#}")))
+}
+
+/// A row's class (its label must be one) and ADC samples.
+fn labelled_adc(data: &Dataset, row: &ManifestRow) -> Result<(FaultClass, Vec<AdcCounts>), FileError> {
+    let class = FaultClass::from_label(&row.label)
+        .ok_or_else(|| FileError::new(&row.file, 0, format!("unknown label `{}`", row.label)))?;
+    let trace = data.read_trace(row)?;
+    Ok((class, trace.adc_counts().into_iter().map(AdcCounts).collect()))
 }
 
 /// Replays ADC samples (100 Hz from the release command) through the core and collects their
@@ -178,16 +188,11 @@ pub fn augment_adc(adc: &[AdcCounts], rng: &mut crate::nn::SplitMix) -> Vec<AdcC
 
 /// Augmented copies of training traces (one per trace, see [`augment_adc`]), seeded per trace.
 pub fn augmented_features(dir: &Path, rows: &[ManifestRow], seed: u64) -> Result<Vec<TraceFeatures>> {
+    let data = Dataset::open(dir)?;
     rows.par_iter()
         .enumerate()
         .map(|(i, row)| {
-            let class = FaultClass::from_label(&row.label)
-                .with_context(|| format!("{}: unknown label `{}`", row.file, row.label))?;
-            let trace = read_trace(&trace_path(dir, row)).map_err(|e| anyhow::anyhow!("{e}"))?;
-            let adc: Vec<AdcCounts> = match &trace.samples {
-                Samples::Adc(v) => v.iter().map(|&c| AdcCounts(c)).collect(),
-                Samples::Bar(v) => v.iter().map(|&p| adc_from_bar(BarG(p))).collect(),
-            };
+            let (class, adc) = labelled_adc(&data, row)?;
             let mut rng = crate::nn::SplitMix::new(seed ^ 0xA5A5_0000_0000 ^ i as u64);
             features_from_adc(row, class, &augment_adc(&adc, &mut rng))
         })
@@ -195,14 +200,22 @@ pub fn augmented_features(dir: &Path, rows: &[ManifestRow], seed: u64) -> Result
 }
 
 /// Features of every manifest row whose split is `split` (all rows for `None`), in manifest
-/// order, computed in parallel.
-pub fn dataset_features(dir: &Path, split: Option<&str>) -> Result<Vec<TraceFeatures>> {
-    let rows = read_manifest(dir).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let rows: Vec<ManifestRow> = rows.into_iter().filter(|r| split.is_none_or(|s| r.split == s)).collect();
+/// order, computed in parallel; a row whose trace cannot be used (unreadable, unknown label) is
+/// skipped with its reason.
+pub fn dataset_features(dir: &Path, split: Option<&str>) -> Result<(Vec<TraceFeatures>, Skipped)> {
+    let data = Dataset::open(dir)?;
+    let rows: Vec<&ManifestRow> = data.rows().iter().filter(|r| split.is_none_or(|s| r.split == s)).collect();
     if rows.is_empty() {
         bail!("{}: no traces with split {:?}", dir.display(), split.unwrap_or("any"));
     }
-    rows.par_iter().map(|r| trace_features(dir, r)).collect()
+    let results: Vec<Result<TraceFeatures, FileError>> = rows.par_iter().map(|r| trace_features(&data, r)).collect();
+    let mut skipped = Skipped::none();
+    let features: Vec<TraceFeatures> =
+        results.into_iter().filter_map(|r| r.map_err(|e| skipped.push(e)).ok()).collect();
+    if features.is_empty() {
+        bail!("{}: no usable trace with split {:?}\n{skipped}", dir.display(), split.unwrap_or("any"));
+    }
+    Ok((features, skipped))
 }
 
 /// The classes present, in code order.
@@ -978,12 +991,12 @@ pub fn fit_temperature(q: &QuantParams, rows: &[(Vec<f64>, usize)]) -> f64 {
 }
 
 /// `host-sim train`.
-pub fn run(a: &TrainArgs) -> Result<()> {
+pub fn run(a: &TrainOptions) -> Result<Skipped> {
     let t0 = std::time::Instant::now();
-    let train = dataset_features(&a.dataset, Some("train"))?;
+    let (train, skipped) = dataset_features(&a.dataset, Some("train"))?;
     eprintln!("features of {} training traces: {:.1} s", train.len(), t0.elapsed().as_secs_f64());
     if a.refit_region {
-        return refit_compiled_region(a, &train);
+        return refit_compiled_region(a, &train).map(|()| skipped);
     }
     let t1 = std::time::Instant::now();
     let augmented = if a.augment {
@@ -1029,11 +1042,11 @@ pub fn run(a: &TrainArgs) -> Result<()> {
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("{} golden vectors written to {}", rows.len(), path.display());
     }
-    Ok(())
+    Ok(skipped)
 }
 
 /// `host-sim train --refit-region`: the compiled-in network with class regions from `train`.
-fn refit_compiled_region(a: &TrainArgs, train: &[TraceFeatures]) -> Result<()> {
+fn refit_compiled_region(a: &TrainOptions, train: &[TraceFeatures]) -> Result<()> {
     let mut q = QuantParams::from_model(&pbm::classifier::model_weights::MODEL);
     set_class_region(&mut q, train);
     std::fs::create_dir_all(&a.out).with_context(|| format!("cannot create {}", a.out.display()))?;

@@ -3,13 +3,16 @@
 
 use pbm_io::dataset::{read_manifest, MANIFEST};
 use pbm_io::trace::{parse_trace, read_trace, Samples};
-use pbm_lab::generate::{generate, GenerateArgs};
-use pbm_lab::replay::{items, replay_all, replay_item, replay_trace, summarise, TraceSummary, RESULT_HEADER};
+use pbm_lab::generate::{generate, GenerateOptions};
+use pbm_lab::replay::{
+    items, replay_all, replay_item, replay_trace, summarise, write_summary_csv, ReplayOptions, TraceSummary,
+    RESULT_COLUMNS,
+};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 fn small() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/small")
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/small")
 }
 
 /// truth.csv: file → (column → value).
@@ -164,58 +167,60 @@ fn bad_file_in_a_data_set_is_reported_and_the_rest_replays() {
 
     let out = tmp.path().join("out");
     let plot = tmp.path().join("plot");
-    let results = replay_all(items(&dir, None).unwrap(), Some(&out), Some(&plot), 2, false).unwrap();
-    let names: Vec<&str> = results.iter().map(|(i, _)| i.name.as_str()).collect();
-    assert_eq!(names, ["t/a.csv", "t/b.csv", "t/missing.csv", "t/c.csv"]);
-    assert!(results[0].1.is_ok() && results[3].1.is_ok());
-    let e = results[1].1.as_ref().unwrap_err();
+    let (items, skipped) = items(&dir, None).unwrap();
+    // The missing file is refused when the data set is opened; the rest are replayed.
+    assert_eq!(skipped.len(), 1);
+    let e = skipped.errors()[0].to_string();
+    assert!(e.contains("missing.csv") && e.contains("No such file"), "{e}");
+    let names: Vec<&str> = items.iter().map(|i| i.name.as_str()).collect();
+    assert_eq!(names, ["t/a.csv", "t/b.csv", "t/c.csv"]);
+    let opts = ReplayOptions { out: Some(out.clone()), plot: Some(plot.clone()), threads: 2, ..Default::default() };
+    let results = replay_all(&items, &opts).unwrap();
+    assert!(results[0].is_ok() && results[2].is_ok());
+    let e = results[1].as_ref().unwrap_err().to_string();
     // Line 108: 7 header lines, row for t = 1.00 s is sample 100.
-    assert!(e.contains("t/b.csv:108: expected 2 columns, found 3"), "{e}");
-    let e = results[2].1.as_ref().unwrap_err();
-    assert!(e.contains("missing.csv") && e.contains("not found"), "{e}");
-    // Outputs of the good traces exist.
+    assert!(e.ends_with("t/b.csv:108: expected 2 columns, found 3"), "{e}");
+    // Outputs of the good traces exist; nothing is left of the bad one.
     let csv = std::fs::read_to_string(out.join("t/a.csv")).unwrap();
-    assert!(csv.starts_with(RESULT_HEADER));
+    assert!(csv.starts_with(&RESULT_COLUMNS.join(",")));
     assert_eq!(csv.lines().count(), 6001);
     assert!(std::fs::read_to_string(plot.join("t/c.svg")).unwrap().contains("<svg"));
     assert!(!out.join("t/b.csv").exists());
 }
 
+/// A label or locomotive with a comma or a quote stays one field of `summary.csv`.
 #[test]
-fn cli_replay_reports_and_exits_nonzero_on_a_bad_trace() {
+fn summary_csv_quotes_fields_with_commas_and_quotes() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path().join("set");
     std::fs::create_dir_all(&dir).unwrap();
-    let good = std::fs::read(small().join("traces/test/air_leak_0000.csv")).unwrap();
-    std::fs::write(dir.join("good.csv"), good).unwrap();
-    std::fs::write(dir.join("bad.csv"), "t_s,adc\n0.00,410\n0.01,5000\n").unwrap();
+    std::fs::copy(small().join("traces/train/normal_0000.csv"), dir.join("a.csv")).unwrap();
     std::fs::write(
         dir.join(MANIFEST),
-        "file,label,locomotive,split\nbad.csv,normal,x,test\ngood.csv,air_leak,y,test\n",
+        "file,label,locomotive,split\na.csv,\"normal, checked\",\"loco \"\"7\"\"\",test\n",
     )
     .unwrap();
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .arg("replay")
-        .arg(&dir)
-        .arg("--out")
-        .arg(tmp.path().join("res"))
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!out.status.success());
-    assert!(stdout.contains("good.csv") && stdout.contains("air_leak"), "{stdout}");
-    assert!(stderr.contains("bad.csv:3: adc value 5000 outside 0..=4095"), "{stderr}");
-    assert!(stderr.contains("1 of 2 traces could not be replayed"), "{stderr}");
-    let summary = std::fs::read_to_string(tmp.path().join("res/summary.csv")).unwrap();
-    assert_eq!(summary.lines().count(), 3);
+    let (items, skipped) = items(&dir, None).unwrap();
+    assert!(skipped.is_empty());
+    let results = replay_all(&items, &ReplayOptions::default()).unwrap();
+    let path = tmp.path().join("summary.csv");
+    write_summary_csv(&path, &items, &results).unwrap();
+    let mut r = csv::Reader::from_path(&path).unwrap();
+    let width = r.headers().unwrap().len();
+    let rows: Vec<csv::StringRecord> = r.records().map(Result::unwrap).collect();
+    assert_eq!(rows.len(), 1);
+    assert_eq!(rows[0].len(), width);
+    assert_eq!(&rows[0][1], "normal, checked");
+    assert_eq!(&rows[0][2], "loco \"7\"");
 }
 
 #[test]
 fn single_trace_replay_writes_results_and_plot() {
     let tmp = tempfile::tempdir().unwrap();
-    let item = &items(&small().join("traces/test/orifice_missing_0000.csv"), None).unwrap()[0];
-    let s = replay_item(item, Some(&tmp.path().join("o")), Some(&tmp.path().join("p"))).unwrap();
+    let item = &items(&small().join("traces/test/orifice_missing_0000.csv"), None).unwrap().0[0];
+    let opts =
+        ReplayOptions { out: Some(tmp.path().join("o")), plot: Some(tmp.path().join("p")), ..Default::default() };
+    let s = replay_item(item, &opts).unwrap().summary;
     assert_eq!(s.label, "orifice_missing", "label comes from the trace metadata");
     assert_eq!(s.locomotive, "loco-05");
     assert!(tmp.path().join("o/orifice_missing_0000.csv").is_file());
@@ -227,11 +232,11 @@ fn single_trace_replay_writes_results_and_plot() {
 #[test]
 fn committed_set_is_reproducible_by_the_generator() {
     let tmp = tempfile::tempdir().unwrap();
-    let mut a = GenerateArgs::with_defaults(tmp.path().join("regen"));
+    let mut a = GenerateOptions::new(tmp.path().join("regen"));
     a.per_class = 2;
     a.test_per_class = 1;
     a.seed = 7;
-    a.classes = pbm::FaultClass::ALL.iter().map(|c| c.label().to_owned()).collect();
+    a.classes = pbm::FaultClass::ALL.to_vec();
     generate(&a, false).unwrap();
     let dir = small();
     assert_eq!(

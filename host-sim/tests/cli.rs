@@ -1,0 +1,162 @@
+//! The command line as a user meets it: exit codes, what is reported on stderr, and that bad
+//! inputs are skipped (or refused) without losing the rest of the run or hanging.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn small() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/small")
+}
+
+/// Runs `host-sim args…`, killing it after 60 s (a hang is a failure, not a stuck CI job).
+fn host_sim(args: &[&std::ffi::OsStr]) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > Duration::from_secs(60) {
+            child.kill().unwrap();
+            panic!("host-sim {args:?} hung");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+fn os<S: AsRef<std::ffi::OsStr> + ?Sized>(s: &S) -> &std::ffi::OsStr {
+    s.as_ref()
+}
+
+/// A data set dir with `good.csv` (a real trace) and whatever else `extra` writes.
+fn data_set(root: &Path, manifest_rows: &str) -> PathBuf {
+    let dir = root.join("set");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(small().join("traces/test/air_leak_0000.csv"), dir.join("good.csv")).unwrap();
+    std::fs::write(dir.join("manifest.csv"), format!("file,label,locomotive,split\n{manifest_rows}")).unwrap();
+    dir
+}
+
+#[test]
+fn replay_skips_a_bad_trace_writes_everything_else_and_exits_3() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = data_set(tmp.path(), "bad.csv,normal,x,test\ngood.csv,air_leak,y,test\n");
+    std::fs::write(dir.join("bad.csv"), "t_s,adc\n0.00,410\n0.01,5000\n").unwrap();
+    let res = tmp.path().join("res");
+    let log = tmp.path().join("all.log");
+    let out =
+        host_sim(&[os("replay"), dir.as_os_str(), os("--out"), res.as_os_str(), os("--can-log"), log.as_os_str()]);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{stderr}");
+    assert!(stdout.contains("good.csv") && stdout.contains("air_leak"), "{stdout}");
+    assert!(stdout.contains("bad.csv") && stdout.contains("SKIPPED"), "{stdout}");
+    assert!(stderr.contains("bad.csv:3: adc value 5000 outside 0..=4095"), "{stderr}");
+    assert!(stderr.contains("1 input(s) skipped"), "{stderr}");
+    let summary = std::fs::read_to_string(res.join("summary.csv")).unwrap();
+    assert_eq!(summary.lines().count(), 3, "{summary}");
+    assert!(res.join("good.csv").is_file() && !res.join("bad.csv").exists());
+    // The CAN log holds the good trace's reports to the end (a closed diagnosis).
+    let decoded = host_sim(&[os("can"), os("decode"), log.as_os_str()]);
+    let text = String::from_utf8_lossy(&decoded.stdout);
+    assert!(decoded.status.success(), "{text}");
+    assert!(text.contains("air_leak") && text.contains("completed"), "{text}");
+}
+
+#[cfg(unix)]
+#[test]
+fn a_fifo_in_a_manifest_is_refused_without_hanging() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = data_set(tmp.path(), "pipe.csv,normal,x,test\ngood.csv,air_leak,y,test\n");
+    let fifo = dir.join("pipe.csv");
+    let status = Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(status.success());
+    let out = host_sim(&[os("replay"), dir.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{stderr}");
+    assert!(stderr.contains("pipe.csv") && stderr.contains("not a regular file"), "{stderr}");
+    assert!(String::from_utf8_lossy(&out.stdout).contains("good.csv"));
+    // A FIFO given directly is refused too.
+    let out = host_sim(&[os("replay"), fifo.as_os_str()]);
+    assert_eq!(out.status.code(), Some(3), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+#[cfg(unix)]
+#[test]
+fn a_symlink_leaving_the_data_set_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let outside = tmp.path().join("outside.csv");
+    std::fs::copy(small().join("traces/test/normal_0000.csv"), &outside).unwrap();
+    let dir = data_set(tmp.path(), "link.csv,normal,x,test\nsub/inner.csv,air_leak,y,test\ngood.csv,air_leak,y,test\n");
+    std::os::unix::fs::symlink(&outside, dir.join("link.csv")).unwrap();
+    // A link that stays inside the data set is fine.
+    std::fs::create_dir_all(dir.join("sub")).unwrap();
+    std::os::unix::fs::symlink(dir.join("good.csv"), dir.join("sub/inner.csv")).unwrap();
+    let out = host_sim(&[os("replay"), dir.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(3), "{stderr}");
+    assert!(stderr.contains("link.csv") && stderr.contains("outside the data set"), "{stderr}");
+    assert!(stdout.contains("sub/inner.csv") && !stdout.contains("inner.csv  SKIPPED"), "{stdout}");
+}
+
+#[test]
+fn path_traversal_in_a_manifest_is_refused_with_its_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = data_set(tmp.path(), "good.csv,air_leak,y,test\n../good.csv,normal,x,test\n");
+    let out = host_sim(&[os("replay"), dir.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("manifest.csv:3: file `../good.csv` must be a relative path"), "{stderr}");
+}
+
+#[test]
+fn usage_errors_exit_2_and_help_has_no_code_references() {
+    let out = host_sim(&[os("replay"), os("--no-such-flag")]);
+    assert_eq!(out.status.code(), Some(2));
+    let mut commands = vec![vec!["--help"]];
+    for c in [
+        "simulate",
+        "generate",
+        "audit",
+        "audit-sweep",
+        "audit-metro",
+        "bench",
+        "replay",
+        "fit",
+        "estimate",
+        "train",
+        "evaluate",
+        "demo",
+    ] {
+        commands.push(vec![c, "--help"]);
+    }
+    for c in ["decode", "send", "demo-log"] {
+        commands.push(vec!["can", c, "--help"]);
+    }
+    for args in commands {
+        let out = host_sim(&args.iter().map(os).collect::<Vec<_>>());
+        let help = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{args:?}");
+        for code in ["host_sim", "pbm_", "::", "issue ", "SPEC §", "Pipeline", "fn "] {
+            assert!(!help.contains(code), "`{}` help mentions `{code}`:\n{help}", args.join(" "));
+        }
+    }
+}
+
+#[test]
+fn effect_help_lists_every_mechanism_with_its_unit() {
+    let out = host_sim(&[os("generate"), os("--help")]);
+    let help = String::from_utf8_lossy(&out.stdout);
+    for d in pbm::mechanism::MECHANISMS {
+        assert!(help.contains(d.name), "{} missing:\n{help}", d.name);
+    }
+    let out = host_sim(&[os("generate"), os("--out"), os("x"), os("--effect"), os("warp_drive=1")]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("warp_drive"));
+}
