@@ -5,7 +5,7 @@
 #![no_main]
 
 use embedded_can::{ExtendedId, Frame, Id, StandardId};
-use host_sim::can_cmd::{decode_log, CabDisplay, DecodeFormat};
+use pbm_lab::can_cmd::{decode_log, CabDisplay, DecodeFormat};
 use libfuzzer_sys::fuzz_target;
 use pbm::can::layout::{FAULT_REPORT, STATUS};
 use pbm::can::{decode_frame, encode_fault, encode_status, CanFrame, Decoder, Report};

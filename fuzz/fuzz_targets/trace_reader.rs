@@ -2,7 +2,7 @@
 //! its invariants (strictly increasing finite time, finite pressures, ADC within 12 bits).
 #![no_main]
 
-use host_sim::trace::{parse_trace, Samples};
+use pbm_io::trace::{parse_trace, Samples};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

@@ -635,7 +635,7 @@ pub struct DemoArgs {
     /// Small, fast variant (40 + 10 traces per class) for tests.
     #[arg(long)]
     quick: bool,
-    /// Firmware cost report to include if present (read, not computed, and labelled so).
+    /// Firmware cost figures to include if present (read, not computed, and labelled so).
     #[arg(long, default_value_os_t = DemoOptions::default().firmware_report)]
     firmware_report: PathBuf,
     /// Test traces per class replayed with CAN logging.

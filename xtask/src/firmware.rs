@@ -214,13 +214,8 @@ pub fn lint() -> Result<()> {
     Ok(())
 }
 
-/// `cargo xtask fw-bench [--check]`: the firmware cost figures.
+/// `cargo xtask fw-bench [--check]`: the firmware cost figures ([`crate::fw_bench`]).
 pub fn bench(check: bool) -> Result<()> {
     require_qemu()?;
-    let mut cmd = Command::new("bash");
-    cmd.arg("scripts/firmware-bench.sh");
-    if check {
-        cmd.arg("--check");
-    }
-    run(&mut cmd)
+    crate::fw_bench::bench(check)
 }

@@ -11,6 +11,9 @@
 //! cargo xtask fw-lint           rustfmt + clippy -D warnings of the firmware workspace
 //! cargo xtask can-check         socketcan build, cantools decodes every frame the project emits
 //! cargo xtask report-check      `host-sim demo --quick` seen in headless Chromium
+//! cargo xtask replay-memory     peak memory of `host-sim replay` on a 63 MB trace (≤ 64 MiB)
+//! cargo xtask shifted-sets      releases the model was not trained on: right / refused / wrong
+//! cargo xtask sensor-fault-battery [SEED]  every sensor fault on every class: no wrong class
 //! ```
 //!
 //! Installing system packages happens only in `setup`; every check says what is missing and
@@ -19,6 +22,8 @@
 
 mod can;
 mod firmware;
+mod fw_bench;
+mod replay_memory;
 mod report;
 mod setup;
 mod util;
@@ -27,7 +32,7 @@ use std::process::ExitCode;
 use util::{cargo, step, Result};
 
 const USAGE: &str = "usage: cargo xtask <setup | test-all | demo [ARGS] | fw-qemu | fw-can-equality | \
-fw-bench [--check] | fw-lint | can-check | report-check>";
+fw-bench [--check] | fw-lint | can-check | report-check | replay-memory | shifted-sets | sensor-fault-battery [SEED]>";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -51,6 +56,11 @@ fn main() -> ExitCode {
         ("fw-lint", []) => firmware::lint(),
         ("can-check", []) => can::check(),
         ("report-check", []) => report::check(),
+        ("replay-memory", []) => replay_memory::check(),
+        ("shifted-sets", []) => robustness(&["shifted-sets"]),
+        ("sensor-fault-battery", seed) if seed.len() <= 1 => {
+            robustness(&[&["sensor-fault-battery"][..], &seed.iter().map(String::as_str).collect::<Vec<_>>()].concat())
+        }
         _ => {
             eprintln!("{USAGE}");
             return ExitCode::from(2);
@@ -85,10 +95,19 @@ fn test_all() -> Result<()> {
     report::check()?;
     step("tests (host)");
     cargo(&["test", "--workspace"])?;
+    step("replay of a 63 MB trace within 64 MiB");
+    replay_memory::check()?;
     step("firmware in QEMU");
     firmware::qemu()?;
     println!("\ntest-all: all checks passed");
     Ok(())
+}
+
+/// The robustness measurements of the README (`crates/lab/examples/robustness.rs`).
+fn robustness(args: &[&str]) -> Result<()> {
+    let mut a = vec!["run", "--release", "-q", "-p", "pbm-lab", "--example", "robustness", "--"];
+    a.extend_from_slice(args);
+    cargo(&a)
 }
 
 /// The main job: the fleet demo that ends in `report/index.html`.

@@ -42,8 +42,9 @@ use pbm_ml::evaluate::{accuracy_vs_time, score_all, stable_by, Score};
 use pbm_ml::nn::Mlp;
 use pbm_ml::train::{dataset_features, features_from_adc, train_all, Kind, TraceFeatures, Trained, SNAPSHOT_TIMES_S};
 use pbm_report::chart::{write_line_chart, ChartLabels, Series, PALETTE};
-use pbm_report::report_html::{check, markdown_blocks, render, utc_text, Block, Cell, Page, Section, Table};
+use pbm_report::report_html::{check, render, utc_text, Block, Cell, Page, Section, Table};
 use rayon::prelude::*;
+use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -74,7 +75,8 @@ pub struct DemoOptions {
     pub data: Option<PathBuf>,
     /// Small, fast variant (40 + 10 traces per class) for tests.
     pub quick: bool,
-    /// Firmware cost report to include if present (read, not computed, and labelled so).
+    /// Firmware figures (`cargo xtask fw-bench` writes them) to include if present (read, not
+    /// computed, and labelled so).
     pub firmware_report: PathBuf,
     /// Test traces per class replayed with CAN logging.
     pub can_per_class: usize,
@@ -90,7 +92,7 @@ impl Default for DemoOptions {
             out: PathBuf::from("report"),
             data: None,
             quick: false,
-            firmware_report: PathBuf::from("bench/firmware.md"),
+            firmware_report: PathBuf::from("bench/firmware-figures.env"),
             can_per_class: 2,
             threads: 0,
         }
@@ -663,7 +665,7 @@ fn section_run(r: &DemoResults) -> Section {
     s.push(Block::Note(
         "Every number, table and plot on this page was computed by the run above, except the firmware cost \
          figures (read from the file named in that section) and the paper's reported accuracies (published \
-         figures, SPEC §6), which are labelled where they appear. Training and the audit run concurrently \
+         figures), which are labelled where they appear. Training and the audit run concurrently \
          (training ours keeps one core busy). Wall times depend on what else the machine runs; CPU times \
          (the whole process, all threads) do not."
             .into(),
@@ -712,12 +714,12 @@ fn section_summary(r: &DemoResults) -> Section {
     t.row(vec![
         Cell::text("ours: int8 and f64 give the same class at 60 s"),
         Cell::strong(format!("{}/{n_test}", r.eval.int8_agree)),
-        Cell::text("aim ≥ 249/250 (issue 6)"),
+        Cell::text("aim ≥ 249/250"),
     ]);
     t.row(vec![
         Cell::text("ours int8: correct and stable from some t ≤ 10 s on"),
         Cell::strong(pct(r.eval.stable10)),
-        Cell::text("aim ≥ 95 % (issue 6)"),
+        Cell::text("aim ≥ 95 %"),
     ]);
     t.row(vec![
         Cell::text("CAN: fault reports decoded from the replay log (core decoder)"),
@@ -751,7 +753,7 @@ fn section_summary(r: &DemoResults) -> Section {
                     a.outcome.chosen.nmse_pct,
                     a.outcome.base.nmse_pct / a.outcome.chosen.nmse_pct
                 )),
-                Cell::text("required gain ≥ 5× (issue 9)"),
+                Cell::text("required gain ≥ 5×"),
             ]);
         }
         Err(e) => t.row(vec![Cell::text("audit"), Cell::strong("failed"), Cell::text(e.clone())]),
@@ -771,7 +773,7 @@ fn section_data(r: &DemoResults) -> Section {
     let g = &r.generate;
     let mut s = Section::new("data", "Fleet data set");
     s.push(Block::Para(format!(
-        "{} traces in {} ({}): {} locomotives with their own manufacturing spread (SPEC §5), {} training and {} test \
+        "{} traces in {} ({}): {} locomotives with their own manufacturing spread (±5 %), {} training and {} test \
          traces per class, test traces only from the {} held-out locomotives; 60 s at 100 Hz, 12-bit ADC with σ = 0.01 bar \
          noise, generator seed {}.",
         r.data.train.len() + r.data.test.len(),
@@ -826,7 +828,7 @@ fn section_classifiers(r: &DemoResults) -> Section {
     }
     s.push(Block::Table(t));
     s.push(Block::Note(
-        "Paper figures: the test accuracies the paper reports on its measured data (SPEC §6: 72 / 81.2 / 96 %). \
+        "Paper figures: the test accuracies the paper reports on its measured data (72 / 81.2 / 96 %). \
          This run's figures are on generated data from held-out locomotives. paper_theta uses the online \
          estimator's parameters (the project's substitute for the paper's batch θ fit)."
             .into(),
@@ -942,8 +944,8 @@ fn section_can(r: &DemoResults) -> Section {
     let c = &r.can;
     let mut s = Section::new("can", "CAN fault reports as the cab display shows them");
     s.push(Block::Para(format!(
-        "{} test traces replayed through pbm::pipeline::Pipeline (monitor, diagnosis policy, CAN transmit schedule — \
-         the firmware's per-sample path) into the candump log {}; the log read back and decoded with the core's \
+        "{} test traces replayed through the monitor exactly as the controller runs it (twin, estimator, \
+         diagnosis policy, CAN transmit schedule) into the candump log {}; the log read back and decoded with the core's \
          decoder (CRC, rolling counter, signal ranges): {} frames, {} status frames, {} fault reports, {} flagged.",
         c.traces,
         c.log.display(),
@@ -1054,7 +1056,7 @@ fn section_audit(r: &DemoResults) -> Result<Section> {
     };
     let o = &a.outcome;
     s.push(Block::Para(format!(
-        "A mechanism the base twin lacks and its magnitude were drawn from seed {} (pbm_lab::audit_sweep::draw_case, \
+        "A mechanism the base twin lacks and its magnitude were drawn from seed {} (\
          uniformly over the {} mechanisms of the plant library, inside physically plausible ranges); {} noisy releases of \
          one locomotive were generated with it and audited without being told what it was.",
         r.info.seed,
@@ -1140,28 +1142,63 @@ fn section_audit(r: &DemoResults) -> Result<Section> {
 
 fn section_firmware(r: &DemoResults) -> Section {
     let mut s = Section::new("firmware", "Firmware cost on the Cortex-M4F");
-    match &r.firmware {
-        Some((path, modified, text)) => {
-            s.push(Block::Callout(format!(
-                "Read from {} (last modified {modified}), written by the firmware benchmark (scripts/firmware-bench.sh). \
-                 These figures were NOT computed in this run; they are shown as that file states them.",
-                path.display()
-            )));
-            for b in markdown_blocks(text) {
-                // The file's own title would repeat the section heading.
-                if !matches!(&b, Block::Heading(h) if h.starts_with("Firmware cost")) {
-                    s.push(b);
-                }
-            }
-        }
-        None => {
-            s.push(Block::Para(
-                "No firmware cost report found (bench/firmware.md is written by scripts/firmware-bench.sh after a target \
-                 build); nothing to show."
-                    .into(),
-            ));
-        }
+    let Some((path, modified, text)) = &r.firmware else {
+        s.push(Block::Para(format!(
+            "No firmware figures found ({} is written by the firmware benchmark, cargo xtask fw-bench, after a \
+             target build); nothing to show.",
+            DemoOptions::default().firmware_report.display()
+        )));
+        return s;
+    };
+    let fig: BTreeMap<&str, &str> = text
+        .lines()
+        .filter(|l| !l.trim_start().starts_with('#'))
+        .filter_map(|l| l.split_once('='))
+        .map(|(k, v)| (k.trim(), v.trim()))
+        .collect();
+    let get = |k: &str| fig.get(k).copied().unwrap_or("?");
+    s.push(Block::Callout(format!(
+        "Read from {} (last modified {modified}; measured {} in {}). These figures were not computed in this run.",
+        path.display(),
+        get("date"),
+        get("emulator")
+    )));
+    let mut t = Table::new(
+        "What the monitor costs the brake controller (instructions counted in the emulator, one per nanosecond)",
+        &["figure", "measured", "budget"],
+    );
+    let rows = [
+        (
+            "computation per 10 ms pressure sample, mean / worst (nominal release)",
+            format!("{} / {} instructions", get("instr_per_sample_mean"), get("instr_per_sample_worst_nominal")),
+            format!("≤ {} instructions", get("instr_budget")),
+        ),
+        (
+            "worst sample over every measured recording",
+            format!("{} instructions", get("instr_per_sample_worst")),
+            format!("≤ {} instructions", get("instr_budget")),
+        ),
+        ("one classification (once per release)", format!("{} instructions", get("classify_instr")), String::new()),
+        (
+            "the sample that closes a diagnosis and sends the report",
+            format!("{} instructions", get("closing_sample_instr")),
+            "< 250000 instructions (10 ms at 25 MHz)".to_owned(),
+        ),
+        (
+            "program memory (flash)",
+            format!("{} bytes", get("flash_bytes")),
+            format!("≤ {} bytes", get("flash_budget_bytes")),
+        ),
+        (
+            "working memory (static data + deepest stack)",
+            format!("{} bytes ({} + {})", get("ram_bytes"), get("static_ram_bytes"), get("peak_stack_bytes")),
+            format!("≤ {} bytes", get("ram_budget_bytes")),
+        ),
+    ];
+    for (what, value, budget) in rows {
+        t.row(vec![Cell::text(what), Cell::strong(value), Cell::text(budget)]);
     }
+    s.push(Block::Table(t));
     s
 }
 

@@ -1,10 +1,10 @@
 //! The demo report's HTML builder and its structural check, without a browser (the browser
 //! check of a real demo run is `cargo xtask report-check`). The end-to-end quick demo is
-//! `#[ignore]`d here (≈ 15–35 s, test profile = opt-level 3): `cargo test -p host-sim --test
+//! `#[ignore]`d here (≈ 15–35 s, test profile = opt-level 3): `cargo test -p pbm-demo --test
 //! demo_report -- --ignored`.
 
 use pbm_demo::demo::{stamp_text, DemoOptions, REQUIRED_SECTIONS};
-use pbm_report::report_html::{check, markdown_blocks, render, svg_element, Block, Cell, Page, Section, Table};
+use pbm_report::report_html::{check, render, svg_element, Block, Cell, Page, Section, Table};
 use plotters::prelude::*;
 
 /// A real plotters SVG with one line, as the report inlines them.
@@ -136,31 +136,15 @@ fn svg_documents_are_inlined_as_their_svg_element() {
 }
 
 #[test]
-fn firmware_markdown_becomes_tables_and_paragraphs() {
-    let md =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../bench/firmware.md")).unwrap_or_else(|_| {
-            "# Firmware cost\n\nMeasured.\n\n| figure | value |\n|---|---|\n| flash | 46448 B |\n".into()
-        });
-    let blocks = markdown_blocks(&md);
-    let tables: Vec<&Table> = blocks
-        .iter()
-        .filter_map(|b| match b {
-            Block::Table(t) => Some(t),
-            _ => None,
-        })
-        .collect();
-    assert!(!tables.is_empty(), "{blocks:?}");
-    assert!(tables.iter().all(|t| !t.rows.is_empty() && t.rows.iter().all(|r| r.len() == t.header.len())));
-    assert!(blocks.iter().any(|b| matches!(b, Block::Para(p) if !p.is_empty())));
-    // Markup is text, never HTML.
-    let b = markdown_blocks("<script>x</script> and `code`");
-    assert_eq!(b, [Block::Para("<script>x</script> and code".into())]);
-    let html = render(&Page {
-        title: "t".into(),
-        subtitle: String::new(),
-        sections: vec![Section { id: "firmware".into(), title: "f".into(), blocks: b }],
-    });
-    assert!(html.contains("&lt;script&gt;x&lt;/script&gt;"));
+fn page_check_refuses_code_references_in_the_text() {
+    use pbm_report::report_html::code_reference;
+    assert_eq!(code_reference("<p>replayed through pbm::pipeline::Pipeline</p>"), Some("pbm::pipeline::Pipeline".into()));
+    assert_eq!(code_reference("<p>see src/twin.rs.</p>"), Some("src/twin.rs".into()));
+    assert_eq!(code_reference("<p>aim (issue 6)</p>").as_deref(), Some("issue 6"));
+    assert_eq!(code_reference("<p>(SPEC §6)</p>").as_deref(), Some("§6"));
+    // Markup, styles and plots are not text; times and ratios are not paths.
+    let ok = "<style>a::before{}</style><svg><text>x::y</text></svg><p>at 12:30:58, 3:1, an issue of trust</p>";
+    assert_eq!(code_reference(ok), None);
 }
 
 #[test]
@@ -186,7 +170,7 @@ fn demo_defaults_and_the_data_stamp() {
 /// The whole quick demo into a temporary directory: the page passes its check, names the seed,
 /// and a second run reuses the data set.
 #[test]
-#[ignore = "runs the quick demo (≈ 15–35 s); cargo test -p host-sim --test demo_report -- --ignored"]
+#[ignore = "runs the quick demo (≈ 15–35 s); cargo test -p pbm-demo --test demo_report -- --ignored"]
 fn quick_demo_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
     let a = DemoOptions { quick: true, out: dir.path().join("report"), ..DemoOptions::default() };

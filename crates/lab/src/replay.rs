@@ -358,6 +358,41 @@ pub struct TraceReplay {
     pub replayed: Replayed,
 }
 
+/// The plotted series of a replay (time, measured, twin, residual), thinned so that memory stays
+/// bounded however long the trace: every sample up to [`PLOT_POINTS`] points, then every second,
+/// fourth, … sample (a plot is a few thousand pixels wide; a 60 s release keeps all 6000).
+#[derive(Default)]
+struct PlotSeries {
+    columns: [Vec<f64>; 4],
+    stride: usize,
+    seen: usize,
+}
+
+/// Most points a replay plot keeps per series before it thins them.
+pub const PLOT_POINTS: usize = 16_384;
+
+impl PlotSeries {
+    fn push(&mut self, s: &ReplaySample) {
+        let stride = self.stride.max(1);
+        if self.seen % stride == 0 {
+            for (c, v) in self.columns.iter_mut().zip([s.t_s, s.measured_bar(), s.twin_bar(), s.residual_bar()]) {
+                c.push(v);
+            }
+            if self.columns[0].len() >= PLOT_POINTS {
+                for c in &mut self.columns {
+                    let mut i = 0;
+                    c.retain(|_| {
+                        i += 1;
+                        i % 2 == 1
+                    });
+                }
+                self.stride = stride * 2;
+            }
+        }
+        self.seen += 1;
+    }
+}
+
 /// `DIR/name` with its extension replaced by `ext`.
 fn output_path(dir: &Path, name: &str, ext: &str) -> PathBuf {
     dir.join(name).with_extension(ext)
@@ -379,18 +414,15 @@ pub fn replay_item(item: &TraceItem, opts: &ReplayOptions) -> Result<TraceReplay
         }
         None => None,
     };
-    let mut series: Option<[Vec<f64>; 4]> = opts.plot.as_ref().map(|_| Default::default());
+    let mut series: Option<PlotSeries> = opts.plot.as_ref().map(|_| PlotSeries::default());
     let mut summariser = Summariser::default();
     let run = replay_samples(stream(&mut reader), opts.can_log.is_some(), |s| {
         summariser.push(s);
         if let Some(f) = results.as_mut() {
             f.record(result_fields(s))?;
         }
-        if let Some([t, m, tw, r]) = series.as_mut() {
-            t.push(s.t_s);
-            m.push(s.measured_bar());
-            tw.push(s.twin_bar());
-            r.push(s.residual_bar());
+        if let Some(p) = series.as_mut() {
+            p.push(s);
         }
         Ok(())
     });
@@ -408,7 +440,7 @@ pub fn replay_item(item: &TraceItem, opts: &ReplayOptions) -> Result<TraceReplay
         f.finish().map_err(ReplayError::Output)?;
     }
     let summary = summariser.finish(&item.name, &label, &locomotive, replayed.diagnosis);
-    if let (Some(dir), Some([t, m, tw, r])) = (&opts.plot, &series) {
+    if let (Some(dir), Some(PlotSeries { columns: [t, m, tw, r], .. })) = (&opts.plot, &series) {
         let path = output_path(dir, &item.name, "svg");
         let nmse = summary.nmse_pct.map_or_else(|| "n/a".to_owned(), |v| format!("{v:.2} %"));
         let title = format!("{} ({label}, {locomotive}), NMSE {nmse}", item.name);

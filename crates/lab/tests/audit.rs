@@ -8,7 +8,7 @@
 //!
 //! The default seeds are fixed so CI is reproducible; `AUDIT_TEST_SEED=N` moves the window
 //! (seeds N, N+1, …) to check others. The larger sweep is `#[ignore]`d:
-//! `cargo test -p host-sim --test audit -- --ignored` (≈ 3 min on 2 cores), and the full one is
+//! `cargo test -p pbm-lab --test audit -- --ignored` (≈ 3 min on 2 cores), and the full one is
 //! `host-sim audit-sweep --cases 200 --pairs 40 --null-cases 20` (bench/audit_sweep.md).
 
 use pbm::mechanism::Extensions;

@@ -3,7 +3,7 @@
 //! pipeline (`replay`). No release may be reported as a wrong brake class; the faults the
 //! plausibility checks are built for must be refused as sensor faults. A clean run of the same
 //! releases must not raise a single sensor fault. (The larger battery of the README is
-//! `bash scripts/sensor-fault-battery.sh`.)
+//! `cargo xtask sensor-fault-battery`.)
 
 use pbm::report::{NoDiagnosis, Verdict};
 use pbm::FaultClass;

@@ -297,73 +297,6 @@ pub fn render(page: &Page) -> String {
 // ---------------------------------------------------------------------------------------------
 // Markdown (the subset of the bench reports)
 
-fn table_cells(line: &str) -> Vec<String> {
-    let t = line.trim().trim_start_matches('|').trim_end_matches('|');
-    t.split('|').map(|c| c.trim().replace('`', "")).collect()
-}
-
-fn is_separator(line: &str) -> bool {
-    let cells = table_cells(line);
-    !cells.is_empty() && cells.iter().all(|c| !c.is_empty() && c.chars().all(|ch| matches!(ch, '-' | ':' | ' ')))
-}
-
-/// Reads a Markdown report (headings, paragraphs, list items, pipe tables, fenced code) into blocks.
-/// Inline markup is shown as plain text (backticks and `**` dropped); nothing is interpreted
-/// as HTML.
-pub fn markdown_blocks(md: &str) -> Vec<Block> {
-    let clean = |s: &str| s.replace("**", "").replace('`', "");
-    let lines: Vec<&str> = md.lines().collect();
-    let mut out = Vec::new();
-    let mut para: Vec<String> = Vec::new();
-    let flush = |para: &mut Vec<String>, out: &mut Vec<Block>| {
-        if !para.is_empty() {
-            out.push(Block::Para(para.join(" ")));
-            para.clear();
-        }
-    };
-    let mut i = 0;
-    while i < lines.len() {
-        let line = lines[i];
-        let t = line.trim();
-        if t.starts_with("```") {
-            flush(&mut para, &mut out);
-            let mut code = Vec::new();
-            i += 1;
-            while i < lines.len() && !lines[i].trim().starts_with("```") {
-                code.push(lines[i]);
-                i += 1;
-            }
-            out.push(Block::Pre(code.join("\n")));
-        } else if t.starts_with('#') {
-            flush(&mut para, &mut out);
-            out.push(Block::Heading(clean(t.trim_start_matches('#').trim())));
-        } else if t.starts_with('|') && lines.get(i + 1).is_some_and(|n| is_separator(n)) {
-            flush(&mut para, &mut out);
-            let header = table_cells(t);
-            let mut table = Table { caption: String::new(), header, rows: Vec::new() };
-            i += 2;
-            while i < lines.len() && lines[i].trim().starts_with('|') {
-                table.rows.push(table_cells(lines[i]).into_iter().map(|c| Cell::text(clean(&c))).collect());
-                i += 1;
-            }
-            out.push(Block::Table(table));
-            continue;
-        } else if t.is_empty() {
-            flush(&mut para, &mut out);
-        } else if let Some(item) = t.strip_prefix("- ").or_else(|| t.strip_prefix("* ")) {
-            // A list item: its own paragraph; indented lines continue it.
-            flush(&mut para, &mut out);
-            para.push(format!("• {}", clean(item)));
-        } else if line.starts_with("    ") && para.is_empty() {
-            out.push(Block::Pre(t.to_owned()));
-        } else {
-            para.push(clean(t));
-        }
-        i += 1;
-    }
-    flush(&mut para, &mut out);
-    out
-}
 
 // ---------------------------------------------------------------------------------------------
 // Structural check
@@ -385,6 +318,40 @@ fn count(hay: &str, needle: &str) -> usize {
     hay.matches(needle).count()
 }
 
+/// The first code reference in the visible text of `html` (outside tags, `<style>` and inline
+/// SVG): a Rust path (`a::b`), a source file (`x.rs`), an issue number or a specification
+/// section sign. A reader of the report should see what a thing is, not where it is in the code.
+pub fn code_reference(html: &str) -> Option<String> {
+    let mut text = String::new();
+    let mut rest = html;
+    while let Some(lt) = rest.find('<') {
+        text.push_str(&rest[..lt]);
+        text.push(' ');
+        let after = &rest[lt..];
+        let skip_to = ["<style", "<svg"].iter().find(|t| after.starts_with(**t)).map(|t| format!("</{}>", &t[1..]));
+        let end = match skip_to {
+            Some(close) => after.find(&close).map_or(after.len(), |e| e + close.len()),
+            None => after.find('>').map_or(after.len(), |e| e + 1),
+        };
+        rest = &after[end..];
+    }
+    text.push_str(rest);
+    for word in text.split(|c: char| c.is_whitespace() || matches!(c, '(' | ')' | ',' | ';')) {
+        let w = word.trim_matches(|c: char| matches!(c, '.' | ':' | '"' | '\'' | '`'));
+        let path = w.split_once("::").is_some_and(|(a, b)| !a.is_empty() && !b.is_empty());
+        if path || w.ends_with(".rs") || w == "§" || w.starts_with('§') {
+            return Some(w.to_owned());
+        }
+    }
+    let lower = text.to_ascii_lowercase();
+    lower.match_indices("issue ").find_map(|(i, m)| {
+        let next = lower[i + m.len()..].chars().next()?;
+        let digits = lower[i + m.len()..].chars().take_while(char::is_ascii_digit).count();
+        (next.is_ascii_digit()).then(|| text[i..i + m.len() + digits].to_owned())
+    })
+}
+
+
 /// Checks a rendered page without a browser: one document, no script, no external resource,
 /// every `required` section present and non-empty, every inline SVG drawing something (a
 /// `path`, `polyline`, `circle`, `line` or `rect` beyond its background), every table with at
@@ -398,6 +365,9 @@ pub fn check(html: &str, required: &[&str]) -> Result<PageCheck, String> {
         if lower.contains(bad) {
             return Err(format!("external resource or script: `{bad}`"));
         }
+    }
+    if let Some(r) = code_reference(html) {
+        return Err(format!("the page's text names code, not what it means: `{r}`"));
     }
     let mut found = PageCheck::default();
     let mut rest = html;
@@ -490,18 +460,4 @@ mod tests {
         assert_eq!(utc_text(1_795_437_058), "2026-11-23 12:30:58 UTC");
     }
 
-    #[test]
-    fn markdown_tables_headings_and_paragraphs() {
-        let md = "# Title\n\nSome `code` and **bold**\ntext.\n\n| a | b |\n|---|---|\n| 1 | `x` |\n| 2 | y |\n\n    cmd --flag\n\
-                  \n- one\n  more\n- two\n";
-        let b = markdown_blocks(md);
-        assert_eq!(b[0], Block::Heading("Title".into()));
-        assert_eq!(b[1], Block::Para("Some code and bold text.".into()));
-        let Block::Table(t) = &b[2] else { panic!("{b:?}") };
-        assert_eq!(t.header, ["a", "b"]);
-        assert_eq!(t.rows.len(), 2);
-        assert_eq!(t.rows[0][1].text, "x");
-        assert_eq!(b[3], Block::Pre("cmd --flag".into()));
-        assert_eq!(b[4..], [Block::Para("• one more".into()), Block::Para("• two".into())]);
-    }
 }

@@ -6,7 +6,7 @@
 //! reads of the free-running SysTick counter (interrupts off); summing over thousands of calls
 //! makes the ±1-count quantisation negligible in the mean. A calibration loop of known length
 //! checks the conversion. Output: `key=value` lines on standard output, parsed by
-//! scripts/firmware-bench.sh.
+//! `cargo xtask fw-bench`.
 #![no_std]
 #![no_main]
 
