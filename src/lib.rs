@@ -3,7 +3,8 @@
 //! No allocator, no HAL: time advances one ADC sample per call and every input comes in as an
 //! argument, so the same code runs on the brake controller (Cortex-M4F), on x86 and in tests.
 //!
-//! - [`units`]: unit newtypes and the Q7.24 pressure type.
+//! - [`units`]: unit newtypes and the fixed-point pressure and length types.
+//! - [`fixed`]: the fixed-point number type `Q<T, F>` (format in the type) and its operations.
 //! - [`params`]: physical parameters (SPEC §3) and constants (SPEC §2).
 //! - [`twin`]: the fixed-point digital twin of the release.
 //! - [`sensor`]: the pressure transducer and ADC map (SPEC §5).
@@ -48,4 +49,4 @@ pub mod units;
 pub use fault::FaultClass;
 pub use params::{ParamError, TwinParams};
 pub use twin::{Twin, TwinSample};
-pub use units::{AdcCounts, BarG, KelvinQ8, Meters, PressureQ24, Seconds};
+pub use units::{AdcCounts, BarG, KelvinQ8, Meters, MetersQ32, PressureQ24, Seconds};

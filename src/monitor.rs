@@ -97,7 +97,7 @@ impl Monitor {
             self.twin.reset();
             self.samples_since_release = 0;
         }
-        let twin = TwinSample { pressure: PressureQ24(self.twin.state().p_q24), travel_q32: self.twin.state().x_q32 };
+        let twin = TwinSample { pressure: self.twin.state().p, travel: self.twin.state().x };
         let measured = pressure_from_adc(adc);
         let sensor = self.check.update(adc, valve_open);
         let residual_q24 = match measured {

@@ -4,7 +4,7 @@
 //! | piece | shared with the brake twin |
 //! |---|---|
 //! | constant-volume chamber, energy equation with optional wall heat | [`chamber_substep`] |
-//! | consumption + leakage: an orifice to atmosphere (flow table) and a laminar leak | [`vent_increments_q40`] (the twin's flow table) |
+//! | consumption + leakage: an orifice to atmosphere (flow table) and a laminar leak | [`vent_increments`] (the twin's flow table) |
 //! | compressor command: transport delay and opening lag | [`ValveLine`], [`LineCoeffs`] |
 //! | transducer: lag, offset, gain | [`SensorCoeffs`] |
 //!
@@ -14,9 +14,9 @@
 //!
 //! # Q formats
 //!
-//! Pressure Q7.24 bar absolute ([`PressureQ24`]), gas temperature over the wall temperature
-//! [`TEMPERATURE_K`] as θ Q24, increments per substep summed in Q40 bar and rounded once (as in
-//! the twin). One [`Reservoir::update`] advances [`RESERVOIR_SUBSTEP_S`].
+//! In the types ([`Q`]): pressure Q7.24 bar absolute ([`PressureQ24`]), gas temperature over
+//! the wall temperature [`TEMPERATURE_K`] as θ Q24, increments per substep summed in Q40 bar and
+//! rounded once (as in the twin). One [`Reservoir::update`] advances [`RESERVOIR_SUBSTEP_S`].
 //!
 //! # Mechanisms ([`Extensions`], ranges in [`crate::mechanism::Descriptor::reservoir`])
 //!
@@ -34,11 +34,11 @@
 //! regulator, no piston, the delivery temperature is an input): [`ReservoirParams::validate`]
 //! rejects them.
 
-use crate::fixed::{sat_i32, to_q_i64};
+use crate::fixed::Q;
 use crate::mechanism::{Extensions, Mechanism::*};
 use crate::params::{choked_orifice_gain, within, ParamError, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
 use crate::twin::{
-    chamber_substep, heat_rate_q30, isqrt_q24, laminar_gain, vent_increments_q40, LineCoeffs, SensorCoeffs, ValveLine,
+    chamber_substep, heat_rate, isqrt, laminar_gain, vent_increments, LineCoeffs, SensorCoeffs, ValveLine,
     LAMINAR_SLOPE,
 };
 use crate::units::{KelvinQ8, Meters, PressureQ24};
@@ -46,15 +46,15 @@ use crate::units::{KelvinQ8, Meters, PressureQ24};
 /// Length of one [`Reservoir::update`], s.
 pub const RESERVOIR_SUBSTEP_S: f64 = 0.5;
 
-/// Wall (reference) temperature in kelvin, Q8.
-const WALL_KELVIN_Q8: i64 = 75_046; // round(293.15 · 256)
+/// Wall (reference) temperature in kelvin.
+const WALL_KELVIN: Q<i64, 8> = Q(75_046); // round(293.15 · 256)
 
 /// Largest compressor pressure increment per substep, bar.
 const MAX_STEP_BAR: f64 = 0.25;
 /// Largest laminar leak gain per substep, per bar g.
 const MAX_LAMINAR_GAIN: f64 = 2e-3;
-/// Delivery temperatures are clamped to 1..=600 K (Q8).
-const MAX_DELIVERY_Q8: i64 = 600 << 8;
+/// Delivery temperatures are clamped to 1..=600 K.
+const MAX_DELIVERY: Q<i64, 8> = Q(600 << 8);
 
 /// Physical parameters of the reservoir model.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -93,19 +93,19 @@ impl ReservoirParams {
 ///
 /// | field | format | meaning |
 /// |---|---|---|
-/// | `inflow_q40` | Q40 | compressor pressure increment per substep at the wall temperature, bar |
-/// | `c_vent_q32` | Q32 | outlet orifice: choked increment per substep per bar upstream |
-/// | `laminar_q40` | Q40 | laminar leak increment per substep per bar g |
+/// | `inflow` | Q40 | compressor pressure increment per substep at the wall temperature, bar |
+/// | `c_vent` | Q32 | outlet orifice: choked increment per substep per bar upstream |
+/// | `laminar` | Q40 | laminar leak increment per substep per bar g |
 /// | `line` | [`LineCoeffs`] | delay (loading only) and lag of the compressor flow |
-/// | `heat_rate_q30` | Q30 | h/τ of the wall heat transfer (0 = adiabatic base) |
+/// | `heat_rate` | Q30 | h/τ of the wall heat transfer (0 = adiabatic base) |
 /// | `sensor` | [`SensorCoeffs`] | transducer |
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ReservoirCoeffs {
-    inflow_q40: i64,
-    c_vent_q32: i64,
-    laminar_q40: i64,
+    inflow: Q<i64, 40>,
+    c_vent: Q<i64, 32>,
+    laminar: Q<i64, 40>,
     line: LineCoeffs,
-    heat_rate_q30: i64,
+    heat_rate: Q<i64, 30>,
     sensor: SensorCoeffs,
 }
 
@@ -126,11 +126,11 @@ impl ReservoirCoeffs {
             return Err(ParamError::Reservoir);
         }
         Ok(Self {
-            inflow_q40: to_q_i64(inflow, 40),
-            c_vent_q32: to_q_i64(c_vent, 32),
-            laminar_q40: to_q_i64(laminar, 40),
+            inflow: Q::from_f64(inflow),
+            c_vent: Q::from_f64(c_vent),
+            laminar: Q::from_f64(laminar),
             line: LineCoeffs::new(e[TransportDelay], e[ValveLag], h),
-            heat_rate_q30: heat_rate_q30(e[HeatTransfer], h),
+            heat_rate: heat_rate(e[HeatTransfer], h),
             sensor: SensorCoeffs::new(e[SensorLag], e[SensorOffset], e[SensorGain], h),
         })
     }
@@ -141,18 +141,21 @@ impl ReservoirCoeffs {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Reservoir {
     coeffs: ReservoirCoeffs,
-    p_q24: i32,
-    theta_q24: i64,
+    /// Reservoir pressure, bar abs.
+    p: PressureQ24,
+    /// Gas temperature over the wall temperature.
+    theta: Q<i64, 24>,
     line: ValveLine,
-    sensed_q24: i64,
+    /// Transducer state (lagged pressure), bar abs.
+    sensed: Q<i64, 24>,
 }
 
 impl Reservoir {
     /// A reservoir at atmosphere, compressor unloaded for long, gas at the wall temperature.
     pub fn new(params: &ReservoirParams) -> Result<Self, ParamError> {
         let coeffs = ReservoirCoeffs::new(params)?;
-        let one = PressureQ24::ONE_BAR;
-        Ok(Self { coeffs, p_q24: one, theta_q24: 1 << 24, line: ValveLine::CLOSED, sensed_q24: i64::from(one) })
+        let one = PressureQ24::ATMOSPHERE;
+        Ok(Self { coeffs, p: one, theta: Q::ONE, line: ValveLine::CLOSED, sensed: one.q() })
     }
 
     /// Restarts from a transducer reading (bar abs): the pressure and the transducer state move
@@ -161,30 +164,30 @@ impl Reservoir {
     /// the compressor line at rest (unloaded), as after a long pause; otherwise both keep their
     /// state (a correction in the middle of a cycle).
     pub fn restart(&mut self, reading: PressureQ24, settle: bool) {
-        let target = i64::from(self.coeffs.sensor.pressure_for_reading(reading));
-        let now = i64::from(self.coeffs.sensor.pressure_for_reading(self.reading()));
+        let target = self.coeffs.sensor.pressure_for_reading(reading).q();
+        let now = self.coeffs.sensor.pressure_for_reading(self.reading()).q();
         let shift = target - now;
-        self.p_q24 = sat_i32(i64::from(self.p_q24) + shift).max(0);
-        self.sensed_q24 += shift;
+        self.p = PressureQ24::from_q(self.p.q() + shift).max(PressureQ24(0));
+        self.sensed += shift;
         if settle {
-            self.theta_q24 = 1 << 24;
+            self.theta = Q::ONE;
             self.line = ValveLine::CLOSED;
         }
     }
 
-    /// Reservoir pressure (not what the transducer reads), Q24 bar abs.
+    /// Reservoir pressure (not what the transducer reads), bar abs.
     pub fn pressure(&self) -> PressureQ24 {
-        PressureQ24(self.p_q24)
+        self.p
     }
 
     /// What the transducer reads now (bar abs).
     pub fn reading(&self) -> PressureQ24 {
-        self.coeffs.sensor.read(self.sensed_q24)
+        self.coeffs.sensor.read(self.sensed)
     }
 
-    /// Gas temperature over the wall temperature, Q24 (1 on the adiabatic base).
-    pub fn theta_q24(&self) -> i64 {
-        self.theta_q24
+    /// Gas temperature over the wall temperature (1 on the adiabatic base).
+    pub fn theta(&self) -> Q<i64, 24> {
+        self.theta
     }
 
     /// Advances one substep with the compressor `loaded` (as commanded) delivering air at
@@ -194,37 +197,38 @@ impl Reservoir {
         self.line.command(loaded);
         // The check valve opens only once the compressor outlet has climbed to reservoir
         // pressure: the delay applies to loading; unloading stops the delivery at once.
-        let delay_q16 = if self.line.command { c.line.delay_q16() } else { 0 };
-        let paths = self.line.substep(&c.line, delay_q16);
-        let p = self.p_q24;
-        let thermal = c.heat_rate_q30 != 0;
-        let theta = self.theta_q24.max(1);
-        let sqrt_theta = if thermal { isqrt_q24(theta) } else { 1 << 24 };
-        let mut mass = 0i64;
+        let delay = if self.line.command { c.line.delay() } else { Q::ZERO };
+        let paths = self.line.substep(&c.line, delay);
+        let p = self.p;
+        let thermal = c.heat_rate != Q::ZERO;
+        let theta = self.theta.max(Q(1));
+        let sqrt_theta = if thermal { isqrt(theta) } else { Q::ONE };
+        let mut mass = Q::<i64, 40>::ZERO;
         for path in paths {
             if path.open {
-                mass += c.inflow_q40 * (path.share_q30 >> 14) >> 16;
+                mass += c.inflow.mul_floor(path.share.rescale::<16>());
             }
         }
         // Delivered enthalpy: the mass increment at the delivery temperature (θ_d = T_d/T_wall).
         let mut energy = if thermal {
-            let theta_d_q16 = (i64::from(delivery.0).clamp(1 << 8, MAX_DELIVERY_Q8) << 16) / WALL_KELVIN_Q8;
-            mass * theta_d_q16 >> 16
+            let delivery = Q::<i64, 8>(i64::from(delivery.0)).clamp(Q(1 << 8), MAX_DELIVERY);
+            let theta_d: Q<i64, 16> = delivery.div_trunc(WALL_KELVIN);
+            mass.mul_floor(theta_d)
         } else {
             mass
         };
-        let (vent_energy, vent_mass) = vent_increments_q40(p, c.c_vent_q32, c.laminar_q40, theta, sqrt_theta, thermal);
+        let (vent_energy, vent_mass) = vent_increments(p, c.c_vent, c.laminar, theta, sqrt_theta, thermal);
         energy -= vent_energy;
         mass -= vent_mass;
-        let (p_new, theta_new) = chamber_substep(p, theta, energy, mass, 1 << 16, 0, c.heat_rate_q30);
+        let (p_new, theta_new) = chamber_substep(p, theta, energy, mass, Q::ONE, Q::ZERO, c.heat_rate);
         if c.sensor.lags() {
-            self.sensed_q24 = c.sensor.lag_substep(self.sensed_q24, i64::from(p), i64::from(p_new));
+            self.sensed = c.sensor.lag_substep(self.sensed, p.q(), p_new.q());
         } else {
-            self.sensed_q24 = i64::from(p_new);
+            self.sensed = p_new.q();
         }
-        self.p_q24 = p_new;
-        self.theta_q24 = theta_new;
-        c.sensor.read(self.sensed_q24)
+        self.p = p_new;
+        self.theta = theta_new;
+        c.sensor.read(self.sensed)
     }
 }
 
@@ -297,7 +301,7 @@ mod tests {
         for _ in 0..180 {
             r.update(true, hot);
         }
-        assert!(r.theta_q24() > 1 << 24, "hot delivery warms the gas");
+        assert!(r.theta() > Q::ONE, "hot delivery warms the gas");
         let p_unload = bar(r.pressure());
         // Right after unloading the pressure falls faster than the vent alone: the gas cools.
         for _ in 0..240 {
@@ -306,7 +310,7 @@ mod tests {
         let lam = vent_rate_per_s(&p);
         let vent_only = p_unload * libm::exp(-lam * 120.0);
         assert!(bar(r.pressure()) < vent_only - 0.01, "{} vs {vent_only}", bar(r.pressure()));
-        let theta = r.theta_q24() as f64 / f64::from(1 << 24);
+        let theta = r.theta().to_f64();
         assert!((theta - 1.0).abs() < 0.01, "θ {theta} back at the wall after 6 τ");
     }
 
@@ -348,12 +352,12 @@ mod tests {
         for _ in 0..20 {
             r.update(true, KelvinQ8::from_celsius(50.0));
         }
-        let lag = i64::from(r.pressure().0) - r.sensed_q24;
-        assert!(lag > 1 << 16, "the transducer lags the rise");
+        let lag = r.pressure().q() - r.sensed;
+        assert!(lag > Q(1 << 16), "the transducer lags the rise");
         let target = PressureQ24(r.reading().0 + (1 << 20));
         r.restart(target, false);
         assert!((r.reading().0 - target.0).abs() <= 2);
-        assert_eq!(i64::from(r.pressure().0) - r.sensed_q24, lag);
+        assert_eq!(r.pressure().q() - r.sensed, lag);
     }
 
     #[test]

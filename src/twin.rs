@@ -6,12 +6,16 @@
 //!
 //! # Q formats
 //!
+//! Formats are in the types ([`Q<T, F>`](Q): `F` fractional bits in the integer `T`, see
+//! [`crate::fixed`]); products name the format they are shifted to, and the shifts follow.
+//!
 //! | quantity | type | format | unit |
 //! |---|---|---|---|
-//! | chamber pressure `p` | `i32` | Q7.24 | bar absolute |
-//! | piston travel `x`, bristle deflection `z` | `i32` | Q-1.32 | m |
-//! | piston velocity `v` | `i32` | Q7.24 | m/s |
-//! | forces | `i64` | Q12 | N |
+//! | chamber pressure `p` | [`PressureQ24`] | Q7.24 | bar absolute |
+//! | piston travel `x`, bristle deflection `z` | [`MetersQ32`] = `Q<i32, 32>` | Q-1.32 | m |
+//! | piston velocity `v` | `Q<i32, 24>` | Q7.24 | m/s |
+//! | forces | `Q<i64, 12>` | Q12 | N |
+//! | pressure increments per substep | `Q<i64, 40>` | Q40 | bar |
 //! | flow and friction table values | `u16`/`u32` | Q16 | 1 |
 //!
 //! # Integration
@@ -40,13 +44,13 @@
 //! the monitor compares like with like. Q formats of the extension terms are in [`ExtCoeffs`].
 //!
 //! The valve line ([`ValveLine`], [`LineCoeffs`]), the transducer ([`SensorCoeffs`]), the vents
-//! ([`vent_increments_q40`]) and the chamber's pressure/temperature step ([`chamber_substep`])
+//! ([`vent_increments`]) and the chamber's pressure/temperature step ([`chamber_substep`])
 //! are public pieces: [`crate::reservoir`] assembles its compressor-fed reservoir from them.
 
-use crate::fixed::{rshr, sat_i32, to_q_i32, to_q_i64};
+use crate::fixed::Q;
 use crate::mechanism::{Extensions, Mechanism::*};
 use crate::params::{choked_orifice_gain, circle_area, ParamError, TwinParams, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
-use crate::units::{Meters, PressureQ24};
+use crate::units::{Meters, MetersQ32, PressureQ24};
 
 mod lut {
     include!(concat!(env!("OUT_DIR"), "/luts.rs"));
@@ -63,49 +67,51 @@ pub const LOCKED_STEPS: u32 = 1;
 pub const SUBSTEP_S: f64 = SAMPLE_PERIOD_S / SUBSTEPS as f64;
 
 /// Largest pressure the twin represents, bar absolute (sensor range is 10 bar g).
-const P_MAX_Q24: i32 = 30 << 24;
-/// Largest velocity magnitude, m/s (Q7.24); far above any physical stroke speed.
-const V_MAX_Q24: i64 = 64 << 24;
-/// Largest bristle deflection magnitude, m (Q32): 0.25 m, far above Fs/sigma0.
-const Z_MAX_Q32: i64 = 1 << 30;
+const P_MAX: PressureQ24 = PressureQ24(30 << 24);
+/// Largest velocity magnitude, m/s; far above any physical stroke speed.
+const V_MAX: Q<i64, 24> = Q(64 << 24);
+/// Largest bristle deflection magnitude, m: 0.25 m, far above Fs/sigma0.
+const Z_MAX: Q<i64, 32> = Q(1 << 30);
+/// Atmospheric pressure in the arithmetic's Q24 `i64`.
+const ATMOSPHERE: Q<i64, 24> = PressureQ24::ATMOSPHERE.q();
 
-/// Integer coefficients of the twin, derived once from [`TwinParams`].
+/// Integer coefficients of the twin, derived once from [`TwinParams`] (formats in the types).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TwinCoeffs {
-    /// Supply pressure, Q7.24 bar abs.
-    supply_q24: i32,
-    /// Inlet orifice: choked pressure increment per substep per bar upstream at V0, Q32.
-    c_in_q32: i64,
-    /// Leak orifice, same meaning as `c_in_q32`.
-    c_leak_q32: i64,
-    /// A/V0, 1/m, Q16 (volume ratio V/V0 = 1 + (A/V0) x).
-    area_per_v0_q16: i64,
-    /// k A / V0, 1/m, Q16 (compression work term).
-    kappa_area_per_v0_q16: i64,
-    /// Piston area as force per bar, N/bar, Q8.
-    area_n_per_bar_q8: i64,
-    /// Spring preload F0, N, Q12.
-    preload_q12: i64,
-    /// Spring rate K, N/m, Q4.
-    spring_q4: i64,
-    /// Bristle stiffness sigma0, N/m, Q4.
-    sigma0_q4: i64,
-    /// Bristle damping sigma1, N s/m, Q0.
-    sigma1_q0: i64,
-    /// Coulomb friction Fc, N, Q12.
-    coulomb_q12: i64,
-    /// Fs - Fc, N, Q12.
-    stribeck_span_q12: i64,
-    /// 1/vs, s/m, Q8.
-    inv_vs_q8: i64,
-    /// h/M scaled so that `dv_q24 = F_q12 * accel >> 24`.
-    accel_q24: i64,
-    /// 1/(1 + h (sigma1 + B)/M), Q24: the implicit linear damping.
-    damping_q24: i64,
-    /// h·2^8 in Q24: `dx_q32 = v_q24 * step >> 24`.
-    step_q24: i64,
-    /// Stroke L, m, Q32.
-    stroke_q32: i32,
+    /// Supply pressure, bar abs.
+    supply: PressureQ24,
+    /// Inlet orifice: choked pressure increment per substep per bar upstream at V0.
+    c_in: Q<i64, 32>,
+    /// Leak orifice, same meaning as `c_in`.
+    c_leak: Q<i64, 32>,
+    /// A/V0, 1/m (volume ratio V/V0 = 1 + (A/V0) x).
+    area_per_v0: Q<i64, 16>,
+    /// k A / V0, 1/m (compression work term).
+    kappa_area_per_v0: Q<i64, 16>,
+    /// Piston area as force per bar, N/bar.
+    area_n_per_bar: Q<i64, 8>,
+    /// Spring preload F0, N.
+    preload: Q<i64, 12>,
+    /// Spring rate K, N/m.
+    spring: Q<i64, 4>,
+    /// Bristle stiffness sigma0, N/m.
+    sigma0: Q<i64, 4>,
+    /// Bristle damping sigma1, N s/m.
+    sigma1: Q<i64, 0>,
+    /// Coulomb friction Fc, N.
+    coulomb: Q<i64, 12>,
+    /// Fs - Fc, N.
+    stribeck_span: Q<i64, 12>,
+    /// 1/vs, s/m.
+    inv_vs: Q<i64, 8>,
+    /// h/M, s/kg: velocity increment per unit force over a substep (Q12 N · Q36 → Q24 m/s).
+    accel: Q<i64, 36>,
+    /// 1/(1 + h (sigma1 + B)/M): the implicit linear damping.
+    damping: Q<i64, 24>,
+    /// Substep h, s (Q24 m/s · Q32 s → Q32 m).
+    step: Q<i64, 32>,
+    /// Stroke L, m.
+    stroke: MetersQ32,
     /// Pressure steps per sample while the piston is held ([`LOCKED_STEPS`] or [`SUBSTEPS`]).
     held_steps: u32,
     /// Optional mechanisms (all zero / inactive for the base model).
@@ -117,24 +123,24 @@ pub struct TwinCoeffs {
 /// | field | format | meaning |
 /// |---|---|---|
 /// | `line` | see [`LineCoeffs`] | transport delay and valve lag |
-/// | `heat_rate_q30` | Q30 | h/τ of the gas-to-wall heat transfer (0 = off) |
-/// | `sqrt_theta_s_q24`, `inv_sqrt_theta_s_q24` | Q24 | sqrt(T_supply/T_wall) and its inverse |
+/// | `heat_rate` | Q30 | h/τ of the gas-to-wall heat transfer (0 = off) |
+/// | `sqrt_theta_s`, `inv_sqrt_theta_s` | Q24 | sqrt(T_supply/T_wall) and its inverse |
 /// | `sensor` | see [`SensorCoeffs`] | transducer lag, offset and gain |
-/// | `droop_q24`, `droop_ref_q40` | Q24 bar, Q40 bar/substep | supply sag and the nominal orifice's choked increment |
-/// | `spring_quad_q4` | Q4 | K β / L, N/m² |
-/// | `laminar_q40` | Q40 | pressure increment per substep per bar g at V0 |
+/// | `droop`, `droop_ref` | Q24 bar, Q40 bar/substep | supply sag and the nominal orifice's choked increment |
+/// | `spring_quad` | Q4 | K β / L, N/m² |
+/// | `laminar` | Q40 | pressure increment per substep per bar g at V0 |
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ExtCoeffs {
     active: bool,
     line: LineCoeffs,
-    heat_rate_q30: i64,
-    sqrt_theta_s_q24: i64,
-    inv_sqrt_theta_s_q24: i64,
+    heat_rate: Q<i64, 30>,
+    sqrt_theta_s: Q<i64, 24>,
+    inv_sqrt_theta_s: Q<i64, 24>,
     sensor: SensorCoeffs,
-    droop_q24: i64,
-    droop_ref_q40: i64,
-    spring_quad_q4: i64,
-    laminar_q40: i64,
+    droop: Q<i64, 24>,
+    droop_ref: Q<i64, 40>,
+    spring_quad: Q<i64, 4>,
+    laminar: Q<i64, 40>,
 }
 
 impl ExtCoeffs {
@@ -142,14 +148,14 @@ impl ExtCoeffs {
     const NONE: Self = Self {
         active: false,
         line: LineCoeffs::NONE,
-        heat_rate_q30: 0,
-        sqrt_theta_s_q24: 0,
-        inv_sqrt_theta_s_q24: 0,
+        heat_rate: Q::ZERO,
+        sqrt_theta_s: Q::ZERO,
+        inv_sqrt_theta_s: Q::ZERO,
         sensor: SensorCoeffs::IDEAL,
-        droop_q24: 0,
-        droop_ref_q40: 0,
-        spring_quad_q4: 0,
-        laminar_q40: 0,
+        droop: Q::ZERO,
+        droop_ref: Q::ZERO,
+        spring_quad: Q::ZERO,
+        laminar: Q::ZERO,
     };
 
     /// True when any mechanism is on (the twin then takes the extended path).
@@ -163,39 +169,39 @@ impl ExtCoeffs {
 ///
 /// | field | format | meaning |
 /// |---|---|---|
-/// | `delay_q16` | Q16 | transport delay in substeps |
-/// | `lag_keep_q30`, `lag_gap_avg_q30` | Q30 | valve lag: e^(−h/τ) and the mean of the closing gap over a substep |
+/// | `delay` | Q16 | transport delay in substeps |
+/// | `lag_keep`, `lag_gap_avg` | Q30 | valve lag: e^(−h/τ) and the mean of the closing gap over a substep |
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct LineCoeffs {
-    delay_q16: i64,
-    lag_keep_q30: i64,
+    delay: Q<i64, 16>,
+    lag_keep: Q<i64, 30>,
     /// Non-zero exactly when the valve lags (no separate flag: it would pad the twin's
     /// coefficients, which the firmware keeps in RAM and flash).
-    lag_gap_avg_q30: i64,
+    lag_gap_avg: Q<i64, 30>,
 }
 
 impl LineCoeffs {
     /// No delay, no lag.
-    pub const NONE: Self = Self { delay_q16: 0, lag_keep_q30: 0, lag_gap_avg_q30: 0 };
+    pub const NONE: Self = Self { delay: Q::ZERO, lag_keep: Q::ZERO, lag_gap_avg: Q::ZERO };
 
     /// From a transport delay and an opening time constant (s, 0 = none) at substep `h_s`.
     pub fn new(delay_s: f64, lag_s: f64, h_s: f64) -> Self {
         let keep = if lag_s > 0.0 { libm::exp(-h_s / lag_s) } else { 0.0 };
         Self {
-            delay_q16: to_q_i64(delay_s / h_s, 16),
-            lag_keep_q30: to_q_i64(keep, 30),
-            lag_gap_avg_q30: if lag_s > 0.0 { to_q_i64(lag_s / h_s * (1.0 - keep), 30).max(1) } else { 0 },
+            delay: Q::from_f64(delay_s / h_s),
+            lag_keep: Q::from_f64(keep),
+            lag_gap_avg: if lag_s > 0.0 { Q::from_f64(lag_s / h_s * (1.0 - keep)).max(Q(1)) } else { Q::ZERO },
         }
     }
 
     /// True when the valve opens with a lag.
     pub fn lags(&self) -> bool {
-        self.lag_gap_avg_q30 != 0
+        self.lag_gap_avg != Q::ZERO
     }
 
-    /// The transport delay, Q16 substeps.
-    pub fn delay_q16(&self) -> i64 {
-        self.delay_q16
+    /// The transport delay, substeps.
+    pub fn delay(&self) -> Q<i64, 16> {
+        self.delay
     }
 }
 
@@ -208,10 +214,10 @@ pub struct ValveLine {
     pub effective: bool,
     /// A command change is travelling down the line.
     pub pending: bool,
-    /// Time since the last command change, substeps, Q16.
-    pub elapsed_q16: i64,
-    /// Opening area fraction of the effective valve path still closed (valve lag), Q30.
-    pub gap_q30: i64,
+    /// Time since the last command change, substeps.
+    pub elapsed: Q<i64, 16>,
+    /// Opening area fraction of the effective valve path still closed (valve lag).
+    pub gap: Q<i64, 30>,
 }
 
 /// One of at most two valve positions seen during a substep and its open area share.
@@ -219,53 +225,52 @@ pub struct ValveLine {
 pub struct LinePath {
     /// Valve open (connected to the source).
     pub open: bool,
-    /// Share of the substep times the open area fraction, Q30.
-    pub share_q30: i64,
+    /// Share of the substep times the open area fraction.
+    pub share: Q<i64, 30>,
 }
 
 impl ValveLine {
     /// Closed for long, nothing travelling.
-    pub const CLOSED: Self = Self { command: false, effective: false, pending: false, elapsed_q16: 0, gap_q30: 0 };
+    pub const CLOSED: Self = Self { command: false, effective: false, pending: false, elapsed: Q::ZERO, gap: Q::ZERO };
 
     /// Gives a command; a change starts travelling down the line.
     pub fn command(&mut self, open: bool) {
         if open != self.command {
             self.command = open;
             self.pending = true;
-            self.elapsed_q16 = 0;
+            self.elapsed = Q::ZERO;
         }
     }
 
-    /// Advances one substep with transport delay `delay_q16` (Q16 substeps; a caller may make
-    /// it depend on the direction of the change). The command reaches the chamber `delay` after
+    /// Advances one substep with transport delay `delay` (substeps; a caller may make it
+    /// depend on the direction of the change). The command reaches the chamber `delay` after
     /// it is given, possibly inside this substep: the part after the switch then uses the new
     /// path, so the result is continuous in the delay. Returns the (up to two) positions seen.
-    pub fn substep(&mut self, c: &LineCoeffs, delay_q16: i64) -> [LinePath; 2] {
-        const FULL_Q16: i64 = 1 << 16;
-        const ONE_Q30: i64 = 1 << 30;
+    pub fn substep(&mut self, c: &LineCoeffs, delay: Q<i64, 16>) -> [LinePath; 2] {
+        const FULL: Q<i64, 16> = Q::ONE;
         let old_effective = self.effective;
-        let old_open_q30 = ONE_Q30 - (self.gap_q30 * c.lag_gap_avg_q30 >> 30);
-        let mut new_share_q16 = 0;
+        let old_open: Q<i64, 30> = Q::ONE - self.gap.mul_floor(c.lag_gap_avg);
+        let mut new_share = Q::ZERO;
         if self.pending {
-            self.elapsed_q16 += FULL_Q16;
-            if self.elapsed_q16 > delay_q16 {
-                new_share_q16 = (self.elapsed_q16 - delay_q16).min(FULL_Q16);
+            self.elapsed += FULL;
+            if self.elapsed > delay {
+                new_share = (self.elapsed - delay).min(FULL);
                 self.pending = false;
                 self.effective = self.command;
-                self.gap_q30 = if c.lags() { ONE_Q30 } else { 0 };
+                self.gap = if c.lags() { Q::ONE } else { Q::ZERO };
             }
         }
-        let new_open_q30 = ONE_Q30 - (self.gap_q30 * c.lag_gap_avg_q30 >> 30);
-        let paths = if new_share_q16 > 0 {
+        let new_open: Q<i64, 30> = Q::ONE - self.gap.mul_floor(c.lag_gap_avg);
+        let paths = if new_share > Q::ZERO {
             [
-                LinePath { open: old_effective, share_q30: old_open_q30 * (FULL_Q16 - new_share_q16) >> 16 },
-                LinePath { open: self.effective, share_q30: new_open_q30 * new_share_q16 >> 16 },
+                LinePath { open: old_effective, share: old_open.mul_floor(FULL - new_share) },
+                LinePath { open: self.effective, share: new_open.mul_floor(new_share) },
             ]
         } else {
-            [LinePath { open: self.effective, share_q30: old_open_q30 }, LinePath { open: false, share_q30: 0 }]
+            [LinePath { open: self.effective, share: old_open }, LinePath { open: false, share: Q::ZERO }]
         };
         if c.lags() {
-            self.gap_q30 = self.gap_q30 * c.lag_keep_q30 >> 30;
+            self.gap = self.gap.mul_floor(c.lag_keep);
         }
         paths
     }
@@ -276,56 +281,54 @@ impl ValveLine {
 ///
 /// | field | format | meaning |
 /// |---|---|---|
-/// | `keep_q30`, `ramp_q30` | Q30 | lag e^(−h/τ) and τ/h (1 − e^(−h/τ)) |
-/// | `offset_q24`, `gain_q24` | Q24 | bar, ratio |
+/// | `keep`, `ramp` | Q30 | lag e^(−h/τ) and τ/h (1 − e^(−h/τ)) |
+/// | `offset`, `gain` | Q24 | bar, ratio |
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct SensorCoeffs {
-    keep_q30: i64,
+    keep: Q<i64, 30>,
     /// Non-zero exactly when the transducer lags (see [`LineCoeffs`] on flags).
-    ramp_q30: i64,
-    offset_q24: i64,
-    gain_q24: i64,
+    ramp: Q<i64, 30>,
+    offset: Q<i64, 24>,
+    gain: Q<i64, 24>,
 }
 
 impl SensorCoeffs {
     /// The coefficients of the brake twin without sensor terms (gain field unused there).
-    const IDEAL: Self = Self { keep_q30: 0, ramp_q30: 0, offset_q24: 0, gain_q24: 0 };
+    const IDEAL: Self = Self { keep: Q::ZERO, ramp: Q::ZERO, offset: Q::ZERO, gain: Q::ZERO };
 
     /// From a lag time constant (s, 0 = none), an offset (bar) and a gain at substep `h_s`.
     pub fn new(lag_s: f64, offset_bar: f64, gain: f64, h_s: f64) -> Self {
         let keep = if lag_s > 0.0 { libm::exp(-h_s / lag_s) } else { 0.0 };
         Self {
-            keep_q30: to_q_i64(keep, 30),
-            ramp_q30: if lag_s > 0.0 { to_q_i64(lag_s / h_s * (1.0 - keep), 30).max(1) } else { 0 },
-            offset_q24: to_q_i64(offset_bar, 24),
-            gain_q24: to_q_i64(gain, 24),
+            keep: Q::from_f64(keep),
+            ramp: if lag_s > 0.0 { Q::from_f64(lag_s / h_s * (1.0 - keep)).max(Q(1)) } else { Q::ZERO },
+            offset: Q::from_f64(offset_bar),
+            gain: Q::from_f64(gain),
         }
     }
 
     /// True when the transducer lags.
     pub fn lags(&self) -> bool {
-        self.ramp_q30 != 0
+        self.ramp != Q::ZERO
     }
 
-    /// Transducer state after one substep in which the pressure ramped from `p_start_q24` to
-    /// `p_end_q24` (exact first-order response to the ramp), all Q24 bar abs.
-    pub fn lag_substep(&self, sensed_q24: i64, p_start_q24: i64, p_end_q24: i64) -> i64 {
-        let ramp = (p_end_q24 - p_start_q24) * self.ramp_q30 >> 30;
-        p_end_q24 - ramp + ((sensed_q24 - p_start_q24) * self.keep_q30 >> 30)
+    /// Transducer state after one substep in which the pressure ramped from `p_start` to
+    /// `p_end` (exact first-order response to the ramp), all bar abs.
+    pub fn lag_substep(&self, sensed: Q<i64, 24>, p_start: Q<i64, 24>, p_end: Q<i64, 24>) -> Q<i64, 24> {
+        let ramp: Q<i64, 24> = (p_end - p_start).mul_floor(self.ramp);
+        p_end - ramp + (sensed - p_start).mul_floor(self.keep)
     }
 
-    /// What the transducer reads (Q24 bar abs) for the (lagged) pressure `p_q24`.
-    pub fn read(&self, p_q24: i64) -> PressureQ24 {
-        let one = i64::from(PressureQ24::ONE_BAR);
-        PressureQ24(sat_i32(one + self.offset_q24 + ((p_q24 - one) * self.gain_q24 >> 24)))
+    /// What the transducer reads for the (lagged) pressure `p` (bar abs).
+    pub fn read(&self, p: Q<i64, 24>) -> PressureQ24 {
+        PressureQ24::from_q(ATMOSPHERE + self.offset + (p - ATMOSPHERE).mul_floor(self.gain))
     }
 
-    /// The pressure (Q24 bar abs) at which the settled transducer reads `reading` (the inverse
-    /// of [`Self::read`], to restart a model from a measured value).
-    pub fn pressure_for_reading(&self, reading: PressureQ24) -> i32 {
-        let one = i64::from(PressureQ24::ONE_BAR);
-        let gauge = i64::from(reading.0) - one - self.offset_q24;
-        sat_i32(one + (gauge << 24) / self.gain_q24.max(1))
+    /// The pressure at which the settled transducer reads `reading` (the inverse of
+    /// [`Self::read`], to restart a model from a measured value).
+    pub fn pressure_for_reading(&self, reading: PressureQ24) -> PressureQ24 {
+        let gauge = reading.q() - ATMOSPHERE - self.offset;
+        PressureQ24::from_q(ATMOSPHERE + gauge.div_trunc(self.gain.max(Q(1))))
     }
 }
 
@@ -339,23 +342,23 @@ impl TwinCoeffs {
     /// on the Cortex-M4F). A test checks that `TwinCoeffs::new(&TwinParams::nominal())` equals
     /// it, so the two cannot drift apart.
     pub const NOMINAL: Self = Self {
-        supply_q24: 145_961_779,
-        c_in_q32: 781_633,
-        c_leak_q32: 0,
-        area_per_v0_q16: 686_291,
-        kappa_area_per_v0_q16: 960_808,
-        area_n_per_bar_q8: 804_248,
-        preload_q12: 51_471_854,
-        spring_q4: 2_640_826,
-        sigma0_q4: 1_600_000,
-        sigma1_q0: 2000,
-        coulomb_q12: 614_400,
-        stribeck_span_q12: 614_400,
-        inv_vs_q8: 25_600,
-        accel_q24: 6_871_948,
-        damping_q24: 11_983_726,
-        step_q24: 8_589_935,
-        stroke_q32: 257_698_038,
+        supply: PressureQ24(145_961_779),
+        c_in: Q(781_633),
+        c_leak: Q(0),
+        area_per_v0: Q(686_291),
+        kappa_area_per_v0: Q(960_808),
+        area_n_per_bar: Q(804_248),
+        preload: Q(51_471_854),
+        spring: Q(2_640_826),
+        sigma0: Q(1_600_000),
+        sigma1: Q(2000),
+        coulomb: Q(614_400),
+        stribeck_span: Q(614_400),
+        inv_vs: Q(25_600),
+        accel: Q(6_871_948),
+        damping: Q(11_983_726),
+        step: Q(8_589_935),
+        stroke: Q(257_698_038),
         held_steps: 1,
         ext: ExtCoeffs::NONE,
     };
@@ -390,23 +393,25 @@ impl TwinCoeffs {
         let m = p.mass_kg;
         let damping = 1.0 / (1.0 + h * (p.sigma1_n_s_per_m + p.viscous_n_s_per_m) / m);
         Ok(Self {
-            supply_q24: PressureQ24::from_bar_g(p.supply).0,
-            c_in_q32: to_q_i64(c_in, 32),
-            c_leak_q32: to_q_i64(c_leak, 32),
-            area_per_v0_q16: to_q_i64(a / p.dead_volume_m3, 16),
-            kappa_area_per_v0_q16: to_q_i64(KAPPA * a / p.dead_volume_m3, 16),
-            area_n_per_bar_q8: to_q_i64(a * 1e5, 8),
-            preload_q12: to_q_i64(p.preload_n, 12),
-            spring_q4: to_q_i64(p.spring_rate_n_per_m, 4),
-            sigma0_q4: to_q_i64(p.sigma0_n_per_m, 4),
-            sigma1_q0: to_q_i64(p.sigma1_n_s_per_m, 0),
-            coulomb_q12: to_q_i64(p.coulomb_n, 12),
-            stribeck_span_q12: to_q_i64(p.static_n - p.coulomb_n, 12),
-            inv_vs_q8: to_q_i64(1.0 / p.stribeck_m_per_s, 8),
-            accel_q24: to_q_i64(h / m * 4096.0, 24),
-            damping_q24: to_q_i64(damping, 24),
-            step_q24: to_q_i64(h * 256.0, 24),
-            stroke_q32: to_q_i32(p.stroke.0, 32),
+            supply: PressureQ24::from_bar_g(p.supply),
+            c_in: Q::from_f64(c_in),
+            c_leak: Q::from_f64(c_leak),
+            area_per_v0: Q::from_f64(a / p.dead_volume_m3),
+            kappa_area_per_v0: Q::from_f64(KAPPA * a / p.dead_volume_m3),
+            area_n_per_bar: Q::from_f64(a * 1e5),
+            preload: Q::from_f64(p.preload_n),
+            spring: Q::from_f64(p.spring_rate_n_per_m),
+            sigma0: Q::from_f64(p.sigma0_n_per_m),
+            sigma1: Q::from_f64(p.sigma1_n_s_per_m),
+            coulomb: Q::from_f64(p.coulomb_n),
+            stribeck_span: Q::from_f64(p.static_n - p.coulomb_n),
+            inv_vs: Q::from_f64(1.0 / p.stribeck_m_per_s),
+            // h/M in Q36 is the same rounding of the same value as (h/M)·2^12 in Q24 (exact
+            // power-of-two scalings): the bits of the former Q24 coefficient.
+            accel: Q::from_f64(h / m),
+            damping: Q::from_f64(damping),
+            step: Q::from_f64(h),
+            stroke: MetersQ32::from_m(p.stroke),
             held_steps,
             ext: if e.is_none() { ExtCoeffs::default() } else { Self::ext_coeffs(p, theta_s, c_in) },
         })
@@ -426,20 +431,20 @@ impl TwinCoeffs {
         ExtCoeffs {
             active: true,
             line: LineCoeffs::new(e[TransportDelay], e[ValveLag], h),
-            heat_rate_q30: heat_rate_q30(e[HeatTransfer], h),
-            sqrt_theta_s_q24: to_q_i64(libm::sqrt(theta_s), 24),
-            inv_sqrt_theta_s_q24: to_q_i64(1.0 / libm::sqrt(theta_s), 24),
+            heat_rate: heat_rate(e[HeatTransfer], h),
+            sqrt_theta_s: Q::from_f64(libm::sqrt(theta_s)),
+            inv_sqrt_theta_s: Q::from_f64(1.0 / libm::sqrt(theta_s)),
             sensor: SensorCoeffs::new(e[SensorLag], e[SensorOffset], e[SensorGain], h),
-            droop_q24: if droop_ref > 0.0 { to_q_i64(e[RegulatorDroop], 24) } else { 0 },
-            droop_ref_q40: to_q_i64(droop_ref, 40).max(1),
-            spring_quad_q4: to_q_i64(p.spring_rate_n_per_m * e[ProgressiveSpring] / p.stroke.0, 4),
-            laminar_q40: to_q_i64(laminar, 40),
+            droop: if droop_ref > 0.0 { Q::from_f64(e[RegulatorDroop]) } else { Q::ZERO },
+            droop_ref: Q::from_f64(droop_ref).max(Q(1)),
+            spring_quad: Q::from_f64(p.spring_rate_n_per_m * e[ProgressiveSpring] / p.stroke.0),
+            laminar: Q::from_f64(laminar),
         }
     }
 
     /// Supply pressure the twin was built for.
     pub fn supply(&self) -> PressureQ24 {
-        PressureQ24(self.supply_q24)
+        self.supply
     }
 
     /// True when any optional mechanism of [`Extensions`] is on (the twin takes the extended path).
@@ -451,19 +456,19 @@ impl TwinCoeffs {
 /// State of the twin: chamber pressure, piston travel and velocity, LuGre bristle deflection.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TwinState {
-    /// Chamber pressure, Q7.24 bar absolute.
-    pub p_q24: i32,
-    /// Piston travel from the applied position, Q32 m.
-    pub x_q32: i32,
-    /// Piston velocity, Q7.24 m/s.
-    pub v_q24: i32,
-    /// LuGre bristle deflection, Q32 m.
-    pub z_q32: i32,
+    /// Chamber pressure, bar absolute.
+    pub p: PressureQ24,
+    /// Piston travel from the applied position, m.
+    pub x: MetersQ32,
+    /// Piston velocity, m/s (Q7.24).
+    pub v: Q<i32, 24>,
+    /// LuGre bristle deflection, m.
+    pub z: MetersQ32,
 }
 
 impl TwinState {
     /// Brake applied, chamber vented: the state at a release command.
-    pub const APPLIED: Self = Self { p_q24: PressureQ24::ONE_BAR, x_q32: 0, v_q24: 0, z_q32: 0 };
+    pub const APPLIED: Self = Self { p: PressureQ24::ATMOSPHERE, x: Q::ZERO, v: Q::ZERO, z: Q::ZERO };
 }
 
 /// State of the optional mechanisms (untouched by the base model).
@@ -471,16 +476,15 @@ impl TwinState {
 pub struct ExtState {
     /// The valve path (transport delay, valve lag).
     pub line: ValveLine,
-    /// Gas temperature over wall temperature, Q24.
-    pub theta_q24: i64,
-    /// Transducer state (lagged chamber pressure), Q24 bar abs.
-    pub sensed_q24: i64,
+    /// Gas temperature over wall temperature.
+    pub theta: Q<i64, 24>,
+    /// Transducer state (lagged chamber pressure), bar abs.
+    pub sensed: Q<i64, 24>,
 }
 
 impl ExtState {
     /// Valve closed for long, gas at wall temperature, transducer settled at atmosphere.
-    pub const APPLIED: Self =
-        Self { line: ValveLine::CLOSED, theta_q24: 1 << 24, sensed_q24: PressureQ24::ONE_BAR as i64 };
+    pub const APPLIED: Self = Self { line: ValveLine::CLOSED, theta: Q::ONE, sensed: ATMOSPHERE };
 }
 
 /// What the twin reports after each sample.
@@ -488,15 +492,8 @@ impl ExtState {
 pub struct TwinSample {
     /// Chamber pressure.
     pub pressure: PressureQ24,
-    /// Piston travel, Q32 m.
-    pub travel_q32: i32,
-}
-
-impl TwinSample {
-    /// Piston travel in metres (for reports).
-    pub fn travel(&self) -> Meters {
-        Meters(f64::from(self.travel_q32) / 4_294_967_296.0)
-    }
+    /// Piston travel (in metres: [`MetersQ32::to_m`]).
+    pub travel: MetersQ32,
 }
 
 /// The fixed-point twin: coefficients plus state, advanced one ADC sample per [`Twin::update`].
@@ -552,12 +549,12 @@ impl Twin {
             return self.update_extended(valve_open);
         }
         let k = &self.coeffs;
-        let upstream = if valve_open { k.supply_q24 } else { PressureQ24::ONE_BAR };
+        let upstream = if valve_open { k.supply } else { PressureQ24::ATMOSPHERE };
         if self.piston_held(upstream) {
             let steps = k.held_steps;
             let mult = i64::from(SUBSTEPS / steps);
             for _ in 0..steps {
-                self.pressure_step(upstream, 0, mult);
+                self.pressure_step(upstream, Q::ZERO, mult);
             }
         } else {
             for _ in 0..SUBSTEPS {
@@ -565,121 +562,134 @@ impl Twin {
                 self.pressure_step(upstream, dx, 1);
             }
         }
-        TwinSample { pressure: PressureQ24(self.state.p_q24), travel_q32: self.state.x_q32 }
+        TwinSample { pressure: self.state.p, travel: self.state.x }
     }
 
-    /// Net force on the piston at rest (v = 0) at chamber pressure `p_q24`, N Q12.
-    fn resting_force_q12(&self, p_q24: i32) -> i64 {
+    /// Net force on the piston at rest (v = 0) at chamber pressure `p`, N.
+    fn resting_force(&self, p: PressureQ24) -> Q<i64, 12> {
         let k = &self.coeffs;
         let s = &self.state;
-        let f_press = (i64::from(p_q24) - i64::from(PressureQ24::ONE_BAR)) * k.area_n_per_bar_q8 >> 20;
-        let f_spring = k.preload_q12 + (k.spring_q4 * i64::from(s.x_q32) >> 24) + spring_quad_q12(k, s.x_q32);
-        let f_bristle = k.sigma0_q4 * i64::from(s.z_q32) >> 24;
+        let f_press: Q<i64, 12> = (p.q() - ATMOSPHERE).mul_floor(k.area_n_per_bar);
+        let f_spring = k.preload + k.spring.mul_floor(s.x.widen()) + spring_quad(k, s.x);
+        let f_bristle: Q<i64, 12> = k.sigma0.mul_floor(s.z.widen());
         f_press - f_spring - f_bristle
     }
 
     /// True when the piston rests against a stop and no pressure reachable within this sample
     /// can move it, so the piston substeps would all clamp to the same state.
-    fn piston_held(&self, upstream_q24: i32) -> bool {
-        self.piston_held_within(upstream_q24, 0)
+    fn piston_held(&self, upstream: PressureQ24) -> bool {
+        self.piston_held_within(upstream, Q::ZERO)
     }
 
-    /// As [`Self::piston_held`], with `extra_q24` added to the bound on the pressure change.
-    fn piston_held_within(&self, upstream_q24: i32, extra_q24: i64) -> bool {
+    /// As [`Self::piston_held`], with `extra` added to the bound on the pressure change.
+    fn piston_held_within(&self, upstream: PressureQ24, extra: Q<i64, 24>) -> bool {
         let s = &self.state;
         let k = &self.coeffs;
-        if s.v_q24 != 0 {
+        if s.v != Q::ZERO {
             return false;
         }
-        // Bound on |dp| over one sample: choked inflow plus choked leak at V = V0.
-        let p = i64::from(s.p_q24);
-        let bound = (i64::from(upstream_q24.max(s.p_q24)) * (k.c_in_q32 + k.c_leak_q32) >> 32) * i64::from(SUBSTEPS)
-            + 1
-            + extra_q24;
-        let hi = sat_i32(p + bound);
-        let lo = sat_i32(p - bound);
-        if s.x_q32 == 0 {
-            self.resting_force_q12(hi) <= 0
-        } else if s.x_q32 == k.stroke_q32 {
-            self.resting_force_q12(lo) >= 0
+        // Bound on |dp| over one sample: choked inflow plus choked leak at V = V0, plus 1 LSB.
+        let p = s.p.q();
+        let choked: Q<i64, 24> = upstream.max(s.p).q().mul_floor(k.c_in + k.c_leak);
+        let bound = choked * i64::from(SUBSTEPS) + Q(1) + extra;
+        let hi = PressureQ24::from_q(p + bound);
+        let lo = PressureQ24::from_q(p - bound);
+        if s.x == Q::ZERO {
+            self.resting_force(hi) <= Q::ZERO
+        } else if s.x == k.stroke {
+            self.resting_force(lo) >= Q::ZERO
         } else {
             false
         }
     }
 
-    /// One piston substep; returns the travel increment (Q32 m) for the work term.
-    fn piston_substep(&mut self) -> i64 {
+    /// One piston substep; returns the travel increment (m) for the work term.
+    fn piston_substep(&mut self) -> Q<i64, 32> {
         let k = self.coeffs;
         let s = &mut self.state;
-        let v = i64::from(s.v_q24);
+        let v = s.v.widen();
         let speed = v.abs();
 
-        // Stribeck curve g(v) = Fc + (Fs - Fc) exp(-(v/vs)^2), N Q12.
-        let u_q16 = speed * k.inv_vs_q8 >> 16;
-        let e_q16 = stribeck_exp_q16(u_q16);
-        let g_q12 = k.coulomb_q12 + (k.stribeck_span_q12 * e_q16 >> 16);
+        // Stribeck curve g(v) = Fc + (Fs - Fc) exp(-(v/vs)^2), N.
+        let u: Q<i64, 16> = speed.mul_floor(k.inv_vs);
+        let e = stribeck_exp(u);
+        let g: Q<i64, 12> = k.coulomb + k.stribeck_span.mul_floor(e);
 
-        // Bristle force sigma0 z and its ratio to g(v): dz/dt = v - |v| (sigma0 z / g).
-        let f_bristle_q12 = k.sigma0_q4 * i64::from(s.z_q32) >> 24;
-        let f_bristle_q4 = (f_bristle_q12 >> 8).clamp(-32_767, 32_767) as i32;
-        let g_q4 = ((g_q12 >> 8) as i32).max(1);
-        let ratio_q16 = i64::from((f_bristle_q4 << 16) / g_q4);
+        // Bristle force sigma0 z and its ratio to g(v): dz/dt = v - |v| (sigma0 z / g), the
+        // ratio as a 32-bit division of Q4 forces.
+        let f_bristle: Q<i64, 12> = k.sigma0.mul_floor(s.z.widen());
+        let f_bristle_i32 = f_bristle.rescale::<4>().clamp(Q(-32_767), Q(32_767)).narrow();
+        let g_i32 = g.rescale::<4>().narrow().max(Q(1));
+        let ratio: Q<i64, 16> = f_bristle_i32.div_trunc::<4, 16>(g_i32).widen();
 
         // Forces except the implicit linear damping (sigma1 + B) v.
-        let zdot_nl_q24 = speed * ratio_q16 >> 16;
-        let f_press = (i64::from(s.p_q24) - i64::from(PressureQ24::ONE_BAR)) * k.area_n_per_bar_q8 >> 20;
-        let f_spring = k.preload_q12 + (k.spring_q4 * i64::from(s.x_q32) >> 24) + spring_quad_q12(&k, s.x_q32);
-        let f_net = f_press - f_spring - f_bristle_q12 + (k.sigma1_q0 * zdot_nl_q24 >> 12);
+        let zdot_nl: Q<i64, 24> = speed.mul_floor(ratio);
+        let f_press: Q<i64, 12> = (s.p.q() - ATMOSPHERE).mul_floor(k.area_n_per_bar);
+        let f_spring = k.preload + k.spring.mul_floor(s.x.widen()) + spring_quad(&k, s.x);
+        let f_net = f_press - f_spring - f_bristle + k.sigma1.mul_floor(zdot_nl);
 
-        let mut v_new = ((v + (f_net * k.accel_q24 >> 24)) * k.damping_q24 >> 24).clamp(-V_MAX_Q24, V_MAX_Q24);
-        let x_old = i64::from(s.x_q32);
-        let mut x_new = x_old + (v_new * k.step_q24 >> 24);
-        let stroke = i64::from(k.stroke_q32);
-        if x_new <= 0 {
-            x_new = 0;
-            v_new = v_new.max(0);
-            if x_old == 0 {
-                v_new = 0;
+        let mut v_new: Q<i64, 24> = (v + f_net.mul_floor(k.accel)).mul_floor(k.damping).clamp(-V_MAX, V_MAX);
+        let x_old = s.x.widen();
+        let mut x_new: Q<i64, 32> = x_old + v_new.mul_floor(k.step);
+        let stroke = k.stroke.widen();
+        if x_new <= Q::ZERO {
+            x_new = Q::ZERO;
+            v_new = v_new.max(Q::ZERO);
+            if x_old == Q::ZERO {
+                v_new = Q::ZERO;
             }
         }
         if x_new >= stroke {
             x_new = stroke;
-            v_new = v_new.min(0);
+            v_new = v_new.min(Q::ZERO);
             if x_old == stroke {
-                v_new = 0;
+                v_new = Q::ZERO;
             }
         }
         // A piston that reaches a stop in this substep stops there (inelastic stop).
-        if x_new == 0 || x_new == stroke {
-            v_new = 0;
+        if x_new == Q::ZERO || x_new == stroke {
+            v_new = Q::ZERO;
         }
 
-        let zdot_q24 = v_new - (v_new.abs() * ratio_q16 >> 16);
-        let z_new = (i64::from(s.z_q32) + (zdot_q24 * k.step_q24 >> 24)).clamp(-Z_MAX_Q32, Z_MAX_Q32);
+        let zdot: Q<i64, 24> = v_new - v_new.abs().mul_floor(ratio);
+        let z_new: Q<i64, 32> = (s.z.widen() + zdot.mul_floor(k.step)).clamp(-Z_MAX, Z_MAX);
 
-        s.v_q24 = v_new as i32;
-        s.x_q32 = x_new as i32;
-        s.z_q32 = z_new as i32;
+        s.v = v_new.narrow();
+        s.x = x_new.narrow();
+        s.z = z_new.narrow();
         x_new - x_old
     }
 
-    /// Pressure step of `mult` substeps with piston travel increment `dx_q32`.
-    fn pressure_step(&mut self, upstream_q24: i32, dx_q32: i64, mult: i64) {
+    /// Pressure step of `mult` substeps with piston travel increment `dx`.
+    fn pressure_step(&mut self, upstream: PressureQ24, dx: Q<i64, 32>, mult: i64) {
         let k = &self.coeffs;
         let s = &mut self.state;
-        let p = s.p_q24;
-        // V0/V in Q16 from V/V0 = 1 + (A/V0) x in Q15.
-        let vol_ratio_q15 = (32_768 + (i64::from(s.x_q32) * k.area_per_v0_q16 >> 33)).clamp(1, 1 << 20) as u32;
-        let inv_vol_q16 = i64::from((1u32 << 31) / vol_ratio_q15);
+        let p = s.p;
+        let inv_vol = inverse_volume_ratio(s.x, k.area_per_v0);
 
         // Increments are summed in Q40 and rounded once: at a 2 ms substep a small orifice adds
         // only a few hundred Q24 LSB, so truncating each term would bias the fill rate by ~0.1 %.
-        let inflow = orifice_dp_q40(upstream_q24, p, k.c_in_q32);
-        let leak = orifice_dp_q40(p, PressureQ24::ONE_BAR, k.c_leak_q32);
-        let work = (i64::from(p) * dx_q32 >> 24) * k.kappa_area_per_v0_q16 >> 8;
-        let dp = rshr(((inflow - leak) * mult - work) * inv_vol_q16, 32);
-        s.p_q24 = sat_i32(i64::from(p) + dp).clamp(0, P_MAX_Q24);
+        let inflow = orifice_dp(upstream, p, k.c_in);
+        let leak = orifice_dp(p, PressureQ24::ATMOSPHERE, k.c_leak);
+        let work = compression_work(p, dx, k.kappa_area_per_v0);
+        let dp: Q<i64, 24> = ((inflow - leak) * mult - work).mul_round(inv_vol);
+        s.p = PressureQ24::from_q(p.q() + dp).clamp(PressureQ24(0), P_MAX);
     }
+}
+
+/// V0/V for the piston at `x`, from V/V0 = 1 + (A/V0) x in Q15 (clamped to 2^-15..=32) and a
+/// 32-bit division.
+#[inline(always)]
+fn inverse_volume_ratio(x: MetersQ32, area_per_v0: Q<i64, 16>) -> Q<i64, 16> {
+    let vol_ratio: Q<i64, 15> = (Q::ONE + x.widen().mul_floor(area_per_v0)).clamp(Q(1), Q(1 << 20));
+    Q(i64::from((1u32 << 31) / vol_ratio.0 as u32))
+}
+
+/// Compression work term p dV/V0 · κ for a travel increment `dx`, as a pressure increment (Q40
+/// bar at V0).
+#[inline(always)]
+fn compression_work(p: PressureQ24, dx: Q<i64, 32>, kappa_area_per_v0: Q<i64, 16>) -> Q<i64, 40> {
+    p.q().mul_floor::<32, 32>(dx).mul_floor(kappa_area_per_v0)
 }
 
 impl Twin {
@@ -691,83 +701,90 @@ impl Twin {
         // Held test on the most open upstream reachable in this sample, with a wide margin for
         // the laminar leak and the temperature terms (a conservative bound only costs speed).
         let any_open = self.ext.line.command || self.ext.line.effective;
-        let upstream = if any_open { self.coeffs.supply_q24 } else { PressureQ24::ONE_BAR };
-        let p = i64::from(self.state.p_q24);
-        let extra = (p * (self.coeffs.c_in_q32 + self.coeffs.c_leak_q32) >> 32) * i64::from(SUBSTEPS)
-            + ((p - i64::from(PressureQ24::ONE_BAR)).abs() * e.laminar_q40 >> 16) * 2 * i64::from(SUBSTEPS)
-            + i64::from(e.heat_rate_q30 != 0) * (p >> 6);
+        let upstream = if any_open { self.coeffs.supply } else { PressureQ24::ATMOSPHERE };
+        let p = self.state.p.q();
+        let choked: Q<i64, 24> = p.mul_floor(self.coeffs.c_in + self.coeffs.c_leak);
+        // NB: the laminar term has always been shifted by 16, not 40: its raw value is the Q48
+        // product read as Q24, 2^24 times the laminar increment. With a laminar leak on, the
+        // bound then exceeds every representable pressure (except at exactly 1 bar abs), so the
+        // held shortcut is practically never taken: a wider bound only costs speed. Kept bit for
+        // bit here; the types make the format visible.
+        let laminar = Q::<i64, 24>((p - ATMOSPHERE).abs().mul_floor::<40, 48>(e.laminar).0);
+        // p/64 while the gas temperature is a state.
+        let thermal = Q::<i64, 24>(p.0 >> 6);
+        let extra = choked * i64::from(SUBSTEPS)
+            + laminar * 2 * i64::from(SUBSTEPS)
+            + thermal * i64::from(e.heat_rate != Q::ZERO);
         let held = self.piston_held_within(upstream, extra);
         for _ in 0..SUBSTEPS {
-            let p_start = i64::from(self.state.p_q24);
-            let dx = if held { 0 } else { self.piston_substep() };
+            let p_start = self.state.p.q();
+            let dx = if held { Q::ZERO } else { self.piston_substep() };
             self.pressure_substep_ext(&e, dx);
             if e.sensor.lags() {
-                self.ext.sensed_q24 = e.sensor.lag_substep(self.ext.sensed_q24, p_start, i64::from(self.state.p_q24));
+                self.ext.sensed = e.sensor.lag_substep(self.ext.sensed, p_start, self.state.p.q());
             }
         }
-        let lagged = if e.sensor.lags() { self.ext.sensed_q24 } else { i64::from(self.state.p_q24) };
-        TwinSample { pressure: e.sensor.read(lagged), travel_q32: self.state.x_q32 }
+        let lagged = if e.sensor.lags() { self.ext.sensed } else { self.state.p.q() };
+        TwinSample { pressure: e.sensor.read(lagged), travel: self.state.x }
     }
 
     /// One 2 ms substep of valve and chamber with the optional mechanisms.
-    fn pressure_substep_ext(&mut self, e: &ExtCoeffs, dx_q32: i64) {
+    fn pressure_substep_ext(&mut self, e: &ExtCoeffs, dx: Q<i64, 32>) {
         let k = self.coeffs;
-        let one = PressureQ24::ONE_BAR;
-        let up = |open: bool| if open { k.supply_q24 } else { one };
-        let paths = self.ext.line.substep(&e.line, e.line.delay_q16);
+        let up = |open: bool| if open { k.supply } else { PressureQ24::ATMOSPHERE };
+        let paths = self.ext.line.substep(&e.line, e.line.delay);
 
         let s = self.state;
-        let p = s.p_q24;
-        let thermal = e.heat_rate_q30 != 0;
-        let theta = self.ext.theta_q24.max(1);
-        let sqrt_theta = if thermal { isqrt_q24(theta) } else { 1 << 24 };
-        // Energy-weighted (pressure) and mass-weighted increments, Q40 at V0: inflow at the supply
+        let p = s.p;
+        let thermal = e.heat_rate != Q::ZERO;
+        let theta = self.ext.theta.max(Q(1));
+        let sqrt_theta = if thermal { isqrt(theta) } else { Q::ONE };
+        // Energy-weighted (pressure) and mass-weighted increments at V0: inflow at the supply
         // temperature, reverse flow and leaks at the gas temperature (thermal path only).
-        let (mut energy, mut mass) = (0i64, 0i64);
+        let (mut energy, mut mass) = (Q::<i64, 40>::ZERO, Q::<i64, 40>::ZERO);
         for path in paths {
-            let share_q30 = path.share_q30;
-            if share_q30 == 0 {
+            let share = path.share;
+            if share == Q::ZERO {
                 continue;
             }
             let mut upstream = up(path.open);
-            if e.droop_q24 != 0 && upstream == k.supply_q24 && p < upstream {
-                upstream = drooped_supply_q24(k.supply_q24, p, k.c_in_q32, share_q30, e);
+            if e.droop != Q::ZERO && upstream == k.supply && p < upstream {
+                upstream = drooped_supply(k.supply, p, k.c_in, share, e);
             }
-            let f = orifice_dp_q40(upstream, p, k.c_in_q32) * share_q30 >> 30;
+            let f: Q<i64, 40> = orifice_dp(upstream, p, k.c_in).mul_floor(share);
             if !thermal {
                 energy += f;
                 mass += f;
-            } else if f >= 0 {
-                energy += f * e.sqrt_theta_s_q24 >> 24;
-                mass += f * e.inv_sqrt_theta_s_q24 >> 24;
+            } else if f >= Q::ZERO {
+                energy += f.mul_floor(e.sqrt_theta_s);
+                mass += f.mul_floor(e.inv_sqrt_theta_s);
             } else {
-                energy += f * sqrt_theta >> 24;
-                mass += (f << 24) / sqrt_theta;
+                energy += f.mul_floor(sqrt_theta);
+                mass += f.div_trunc(sqrt_theta);
             }
         }
-        let (vent_energy, vent_mass) = vent_increments_q40(p, k.c_leak_q32, e.laminar_q40, theta, sqrt_theta, thermal);
+        let (vent_energy, vent_mass) = vent_increments(p, k.c_leak, e.laminar, theta, sqrt_theta, thermal);
         energy -= vent_energy;
         mass -= vent_mass;
 
-        let vol_ratio_q15 = (32_768 + (i64::from(s.x_q32) * k.area_per_v0_q16 >> 33)).clamp(1, 1 << 20) as u32;
-        let inv_vol_q16 = i64::from((1u32 << 31) / vol_ratio_q15);
-        let work = (i64::from(p) * dx_q32 >> 24) * k.kappa_area_per_v0_q16 >> 8;
-        let dvol_q30 = if thermal { (dx_q32 * k.area_per_v0_q16 >> 18) * inv_vol_q16 >> 16 } else { 0 };
-        let (p_new, theta_new) = chamber_substep(p, theta, energy - work, mass, inv_vol_q16, dvol_q30, e.heat_rate_q30);
-        self.state.p_q24 = p_new;
+        let inv_vol = inverse_volume_ratio(s.x, k.area_per_v0);
+        let work = compression_work(p, dx, k.kappa_area_per_v0);
+        let dvol: Q<i64, 30> = if thermal { dx.mul_floor::<16, 30>(k.area_per_v0).mul_floor(inv_vol) } else { Q::ZERO };
+        let (p_new, theta_new) = chamber_substep(p, theta, energy - work, mass, inv_vol, dvol, e.heat_rate);
+        self.state.p = p_new;
         if thermal {
-            self.ext.theta_q24 = theta_new;
+            self.ext.theta = theta_new;
         }
     }
 }
 
-/// h/τ of a gas-to-wall heat transfer time constant τ (s, 0 = none) at substep `h_s`, Q30
-/// (0 = off, else at least 1 LSB).
-pub fn heat_rate_q30(tau_s: f64, h_s: f64) -> i64 {
+/// h/τ of a gas-to-wall heat transfer time constant τ (s, 0 = none) at substep `h_s` (0 = off,
+/// else at least 1 LSB).
+pub fn heat_rate(tau_s: f64, h_s: f64) -> Q<i64, 30> {
     if tau_s > 0.0 {
-        to_q_i64(h_s / tau_s, 30).max(1)
+        Q::from_f64(h_s / tau_s).max(Q(1))
     } else {
-        0
+        Q::ZERO
     }
 }
 
@@ -777,114 +794,117 @@ pub fn laminar_gain(g_per_s: f64, gas_t_k: f64, volume_m3: f64, h_s: f64) -> f64
     KAPPA * GAS_CONSTANT * gas_t_k * h_s / volume_m3 * g_per_s * 1e-3 / 7.0 / 1e5
 }
 
-/// Energy- and mass-weighted pressure increments (Q40 bar at the reference volume) of the vents
-/// to atmosphere: an orifice of gain `c_vent_q32` and a laminar leak of `laminar_q40` per bar g.
-/// On the thermal path the gas leaves at its own temperature θ (Q24, `sqrt_theta_q24` = √θ):
-/// the orifice's mass flow scales as 1/√θ, its energy as √θ, the laminar leak's energy as θ.
-pub fn vent_increments_q40(
-    p_q24: i32,
-    c_vent_q32: i64,
-    laminar_q40: i64,
-    theta_q24: i64,
-    sqrt_theta_q24: i64,
+/// Energy- and mass-weighted pressure increments (bar at the reference volume) of the vents to
+/// atmosphere: an orifice of gain `c_vent` and a laminar leak of `laminar` per bar g. On the
+/// thermal path the gas leaves at its own temperature θ (`sqrt_theta` = √θ): the orifice's mass
+/// flow scales as 1/√θ, its energy as √θ, the laminar leak's energy as θ.
+pub fn vent_increments(
+    p: PressureQ24,
+    c_vent: Q<i64, 32>,
+    laminar: Q<i64, 40>,
+    theta: Q<i64, 24>,
+    sqrt_theta: Q<i64, 24>,
     thermal: bool,
-) -> (i64, i64) {
-    let one = PressureQ24::ONE_BAR;
-    let leak = orifice_dp_q40(p_q24, one, c_vent_q32);
-    let laminar = (i64::from(p_q24) - i64::from(one)) * laminar_q40 >> 24;
+) -> (Q<i64, 40>, Q<i64, 40>) {
+    let leak = orifice_dp(p, PressureQ24::ATMOSPHERE, c_vent);
+    let laminar_dp: Q<i64, 40> = (p.q() - ATMOSPHERE).mul_floor(laminar);
     if thermal {
-        ((leak * sqrt_theta_q24 >> 24) + (laminar * theta_q24 >> 24), ((leak << 24) / sqrt_theta_q24) + laminar)
+        (leak.mul_floor(sqrt_theta) + laminar_dp.mul_floor(theta), leak.div_trunc(sqrt_theta) + laminar_dp)
     } else {
-        (leak + laminar, leak + laminar)
+        (leak + laminar_dp, leak + laminar_dp)
     }
 }
 
 /// One substep of the chamber's pressure and gas temperature (the energy equation of SPEC §2
-/// with the optional wall heat): `energy_q40` is the net energy-weighted increment (flows minus
-/// compression work), `mass_q40` the net mass-weighted one, both at the reference volume and
-/// scaled by `inv_vol_q16` = V0/V; `dvol_q30` = dV/V; `heat_rate_q30` = h/τ (0: adiabatic,
-/// θ is then returned unchanged). Returns the new pressure (Q24 bar abs) and θ = T/T_wall (Q24).
+/// with the optional wall heat): `energy` is the net energy-weighted increment (flows minus
+/// compression work), `mass` the net mass-weighted one, both at the reference volume and
+/// scaled by `inv_vol` = V0/V; `dvol` = dV/V; `heat_rate` = h/τ (0: adiabatic, θ is then
+/// returned unchanged). Returns the new pressure and θ = T/T_wall.
 pub fn chamber_substep(
-    p_q24: i32,
-    theta_q24: i64,
-    energy_q40: i64,
-    mass_q40: i64,
-    inv_vol_q16: i64,
-    dvol_q30: i64,
-    heat_rate_q30: i64,
-) -> (i32, i64) {
-    let p = p_q24;
-    let theta = theta_q24.max(1);
-    let mut dp = rshr(energy_q40 * inv_vol_q16, 32);
-    let mut theta_new = theta_q24;
-    if heat_rate_q30 != 0 {
+    p: PressureQ24,
+    theta: Q<i64, 24>,
+    energy: Q<i64, 40>,
+    mass: Q<i64, 40>,
+    inv_vol: Q<i64, 16>,
+    dvol: Q<i64, 30>,
+    heat_rate: Q<i64, 30>,
+) -> (PressureQ24, Q<i64, 24>) {
+    let theta_pos = theta.max(Q(1));
+    let mut dp: Q<i64, 24> = energy.mul_round(inv_vol);
+    let mut theta_new = theta;
+    if heat_rate != Q::ZERO {
         // Wall heat: (k−1) Q / V = p (T_wall − T) / (T τ).
-        let ratio_q24 = (((1i64 << 24) - theta) << 24) / theta;
-        dp += (i64::from(p) * ratio_q24 >> 24) * heat_rate_q30 >> 30;
-        // dT/T = dp/p + dV/V − dm/m, with dm/m = (mass increment) · θ / (k p).
-        let p_pos = i64::from(p).max(1 << 16);
-        let dm_q24 = rshr(mass_q40 * inv_vol_q16, 32);
-        let rel_q30 = (dp << 30) / p_pos + dvol_q30 - (((dm_q24 * theta >> 24) << 30) * 5 / 7) / p_pos;
-        theta_new = (theta + (theta * rel_q30 >> 30)).clamp(1 << 22, 1 << 26);
+        let ratio: Q<i64, 24> = (Q::ONE - theta_pos).div_trunc(theta_pos);
+        dp += p.q().mul_floor::<24, 24>(ratio).mul_floor(heat_rate);
+        // dT/T = dp/p + dV/V − dm/m, with dm/m = (mass increment) · θ / (k p), 1/k = 5/7.
+        let p_pos = p.q().max(Q(1 << 16));
+        let dm: Q<i64, 24> = mass.mul_round(inv_vol);
+        let dm_theta: Q<i64, 24> = dm.mul_floor(theta_pos);
+        let dm_rel: Q<i64, 30> = (dm_theta.rescale::<54>() * 5 / 7).div_trunc(p_pos);
+        let rel: Q<i64, 30> = dp.div_trunc(p_pos) + dvol - dm_rel;
+        theta_new = (theta_pos + theta_pos.mul_floor(rel)).clamp(Q(1 << 22), Q(1 << 26));
     }
-    (sat_i32(i64::from(p) + dp).clamp(0, P_MAX_Q24), theta_new)
+    (PressureQ24::from_q(p.q() + dp).clamp(PressureQ24(0), P_MAX), theta_new)
 }
 
-/// Supply pressure pu (Q24) sagging with the flow: the root of pu = Ps − droop · m(pu)/m_ref in
+/// Supply pressure pu sagging with the flow: the root of pu = Ps − droop · m(pu)/m_ref in
 /// [p, Ps] (monotone), by bisection to 1/256 of the bracket, then linear interpolation.
-fn drooped_supply_q24(supply_q24: i32, p_q24: i32, c_q32: i64, share_q30: i64, e: &ExtCoeffs) -> i32 {
+fn drooped_supply(supply: PressureQ24, p: PressureQ24, c: Q<i64, 32>, share: Q<i64, 30>, e: &ExtCoeffs) -> PressureQ24 {
     // g(pu) = pu − Ps + sag(pu): increasing in pu, g(p) ≤ 0 ≤ g(Ps).
-    let g = |pu: i32| {
-        let f = orifice_dp_q40(pu, p_q24, c_q32).max(0) * share_q30 >> 30;
-        i64::from(pu) - i64::from(supply_q24) + e.droop_q24 * f / e.droop_ref_q40
+    let g = |pu: PressureQ24| -> Q<i64, 24> {
+        let f: Q<i64, 40> = orifice_dp(pu, p, c).max(Q::ZERO).mul_floor(share);
+        // droop · f / droop_ref: f and droop_ref are both Q40.
+        pu.q() - supply.q() + e.droop * f.0 / e.droop_ref.0
     };
-    let (mut lo, mut hi) = (p_q24, supply_q24);
+    let (mut lo, mut hi) = (p, supply);
     let (mut g_lo, mut g_hi) = (g(lo), g(hi));
     for _ in 0..8 {
-        let mid = lo + ((hi - lo) >> 1);
+        let mid = PressureQ24(lo.0 + ((hi.0 - lo.0) >> 1));
         let g_mid = g(mid);
-        if g_mid <= 0 {
+        if g_mid <= Q::ZERO {
             (lo, g_lo) = (mid, g_mid);
         } else {
             (hi, g_hi) = (mid, g_mid);
         }
     }
     let span = g_hi - g_lo;
-    if span <= 0 {
+    if span <= Q::ZERO {
         return lo;
     }
-    sat_i32(i64::from(lo) + (i64::from(hi - lo) * -g_lo) / span)
+    PressureQ24::from_q(lo.q() + Q(i64::from(hi.0 - lo.0) * -g_lo.0 / span.0))
 }
 
-/// sqrt of a Q24 value, Q24 (integer square root: same bits on every target).
+/// Square root of a Q24 value (integer square root: same bits on every target; negative
+/// values give 0).
 #[inline]
-pub fn isqrt_q24(x_q24: i64) -> i64 {
-    ((x_q24.max(0) as u64) << 24).isqrt() as i64
+pub fn isqrt(x: Q<i64, 24>) -> Q<i64, 24> {
+    Q(((x.0.max(0) as u64) << 24).isqrt() as i64)
 }
 
-/// Progressive spring term K β x² / L, N Q12 (0 when the spring is linear).
+/// Progressive spring term K β x² / L, N (0 when the spring is linear).
 #[inline]
-fn spring_quad_q12(k: &TwinCoeffs, x_q32: i32) -> i64 {
-    if k.ext.spring_quad_q4 == 0 {
-        return 0;
+fn spring_quad(k: &TwinCoeffs, x: MetersQ32) -> Q<i64, 12> {
+    if k.ext.spring_quad == Q::ZERO {
+        return Q::ZERO;
     }
-    let x = i64::from(x_q32);
-    let x2_q32 = x * x >> 32;
-    k.ext.spring_quad_q4.saturating_mul(x2_q32) >> 24
+    let x = x.widen();
+    let x2: Q<i64, 32> = x.mul_floor(x);
+    k.ext.spring_quad.saturating_mul_floor(x2)
 }
 
-/// exp(-u^2) in Q16 for u in Q16, by linear interpolation of the generated table.
+/// exp(-u^2) for u, by linear interpolation of the generated table.
 #[inline]
-fn stribeck_exp_q16(u_q16: i64) -> i64 {
+fn stribeck_exp(u: Q<i64, 16>) -> Q<i64, 16> {
+    let u_q16 = u.0;
     let idx = (u_q16 >> lut::STRIBECK_STEP_SHIFT) as usize;
     if idx + 1 >= lut::STRIBECK_EXP_Q16.len() {
-        return 0;
+        return Q::ZERO;
     }
     let frac = u_q16 & ((1 << lut::STRIBECK_STEP_SHIFT) - 1);
     // The u16 table holds exp(0) = 1.0 (65536 in Q16) as 65535 (build.rs).
     let a = if idx == 0 { 1 << 16 } else { i64::from(lut::STRIBECK_EXP_Q16[idx]) };
     let b = i64::from(lut::STRIBECK_EXP_Q16[idx + 1]);
-    a + ((b - a) * frac >> lut::STRIBECK_STEP_SHIFT)
+    Q(a + ((b - a) * frac >> lut::STRIBECK_STEP_SHIFT))
 }
 
 /// Normalised orifice flow phi(r)/C1 in Q16 for a pressure ratio r (Q16, 0..=1).
@@ -904,29 +924,29 @@ pub fn flow_norm_q16(r_q16: u32) -> i64 {
     a + ((b - a) * frac >> lut::FLOW_STEP_SHIFT)
 }
 
-/// Pressure increment (Q40 bar, at V = V0, per substep) from the flow through an orifice of
-/// gain `c_q32` between `from` and `to` (both Q24 bar abs); negative when the flow reverses.
+/// Pressure increment (bar, at V = V0, per substep) from the flow through an orifice of gain
+/// `c` between `from` and `to` (bar abs); negative when the flow reverses.
 #[inline]
-pub fn orifice_dp_q40(from_q24: i32, to_q24: i32, c_q32: i64) -> i64 {
-    if c_q32 == 0 || from_q24 == to_q24 {
-        return 0;
+pub fn orifice_dp(from: PressureQ24, to: PressureQ24, c: Q<i64, 32>) -> Q<i64, 40> {
+    if c == Q::ZERO || from == to {
+        return Q::ZERO;
     }
-    let (up_q24, down_q24, sign) = if from_q24 > to_q24 { (from_q24, to_q24, 1) } else { (to_q24, from_q24, -1) };
-    let (up, down) = (up_q24, down_q24);
+    let (up_p, down_p, sign) = if from > to { (from, to, 1) } else { (to, from, -1) };
     // Ratio in Q16 with a 32-bit division: numerator Q28, denominator Q12. Pressures above
     // 16 bar abs (outside the sensor range) lose one bit instead of overflowing.
-    let (mut up, mut down) = (up.max(0) as u32, down.max(0) as u32);
+    let (mut up, mut down) = (up_p.0.max(0) as u32, down_p.0.max(0) as u32);
     while up >= 1 << 28 {
         up >>= 1;
         down >>= 1;
     }
     let den = up >> 12;
     if den == 0 {
-        return 0;
+        return Q::ZERO;
     }
     let r_q16 = ((down << 4) / den).min(1 << 16);
-    let phi = flow_norm_q16(r_q16);
-    sign * ((i64::from(up_q24) * phi >> 16) * c_q32 >> 16)
+    let phi = Q::<i64, 16>(flow_norm_q16(r_q16));
+    let choked: Q<i64, 24> = up_p.q().mul_floor(phi);
+    choked.mul_floor::<32, 40>(c) * sign
 }
 
 #[cfg(test)]
@@ -949,16 +969,16 @@ mod tests {
 
     #[test]
     fn orifice_flow_reverses_with_pressure_difference() {
-        let c = 1 << 20;
-        let eight = 8 * PressureQ24::ONE_BAR;
-        let fwd = orifice_dp_q40(eight, PressureQ24::ONE_BAR, c);
-        assert!(fwd > 0);
-        assert_eq!(orifice_dp_q40(PressureQ24::ONE_BAR, eight, c), -fwd);
-        assert_eq!(orifice_dp_q40(eight, eight, c), 0);
-        assert_eq!(orifice_dp_q40(0, 0, c), 0);
+        let c = Q(1 << 20);
+        let (one, eight) = (PressureQ24::ATMOSPHERE, PressureQ24(8 * PressureQ24::ONE_BAR));
+        let fwd = orifice_dp(eight, one, c);
+        assert!(fwd > Q::ZERO);
+        assert_eq!(orifice_dp(one, eight, c), -fwd);
+        assert_eq!(orifice_dp(eight, eight, c), Q::ZERO);
+        assert_eq!(orifice_dp(PressureQ24(0), PressureQ24(0), c), Q::ZERO);
         // Out-of-range pressures lose precision, never overflow.
-        assert!(orifice_dp_q40(i32::MAX, 0, c) > 0);
-        assert!(orifice_dp_q40(i32::MIN, i32::MAX, c) < 0);
+        assert!(orifice_dp(PressureQ24(i32::MAX), PressureQ24(0), c) > Q::ZERO);
+        assert!(orifice_dp(PressureQ24(i32::MIN), PressureQ24(i32::MAX), c) < Q::ZERO);
     }
 
     #[test]
@@ -993,12 +1013,12 @@ mod tests {
         for _ in 0..3000 {
             twin.update(true);
         }
-        assert_eq!(twin.state().x_q32, twin.coeffs().stroke_q32);
+        assert_eq!(twin.state().x, twin.coeffs().stroke);
         for _ in 0..6000 {
             twin.update(false);
         }
-        assert_eq!(twin.state().x_q32, 0, "spring re-applies the brake");
-        let p = PressureQ24(twin.state().p_q24).to_bar_g().0;
+        assert_eq!(twin.state().x, Q::ZERO, "spring re-applies the brake");
+        let p = twin.state().p.to_bar_g().0;
         assert!(p.abs() < 0.01, "chamber vented, {p} bar g");
     }
 }

@@ -2,6 +2,11 @@
 //!
 //! Inside the twin pressures are absolute; everything that crosses an interface (traces, CAN,
 //! CLI) is gauge pressure in bar, as a brake engineer reads it off a gauge.
+//!
+//! The fixed-point types carry their format ([`Q`]): [`PressureQ24`] (bar absolute, Q7.24),
+//! [`MetersQ32`] (lengths in metres, Q-1.32), [`KelvinQ8`].
+
+use crate::fixed::Q;
 
 /// Atmospheric pressure used by the model, in bar absolute (SPEC §2: P0 = 1.000e5 Pa).
 pub const ATMOSPHERE_BAR_ABS: f64 = 1.0;
@@ -66,6 +71,37 @@ impl PressureQ24 {
     /// To gauge pressure (for reports and traces).
     pub fn to_bar_g(self) -> BarG {
         BarG(f64::from(self.0) / f64::from(Self::ONE_BAR) - ATMOSPHERE_BAR_ABS)
+    }
+    /// The pressure as a Q24 number in an `i64`, for fixed-point arithmetic.
+    #[inline(always)]
+    pub const fn q(self) -> Q<i64, 24> {
+        Q(self.0 as i64)
+    }
+    /// From a Q24 number (bar abs), saturating to the `i32` range.
+    #[inline(always)]
+    pub const fn from_q(p: Q<i64, 24>) -> Self {
+        Self(p.saturate().0)
+    }
+}
+
+/// Length in metres, Q-1.32 fixed point in an `i32` (1 LSB = 2^-32 m ≈ 2.3e-10 m, range
+/// ±0.5 m): the twin's piston travel, stroke and bristle deflection. In this crate a
+/// `Q<i32, 32>` is always a length in metres, so the conversions are methods of the format;
+/// [`MetersQ32::to_m`] is the one Q32 → metres conversion of the project.
+pub type MetersQ32 = Q<i32, 32>;
+
+impl Q<i32, 32> {
+    /// From a length (host/init-time conversion; rounds, saturates to ±0.5 m, NaN gives 0).
+    pub fn from_m(length: Meters) -> Self {
+        Self::from_f64(length.0)
+    }
+    /// In metres (for reports and traces).
+    pub fn to_m(self) -> Meters {
+        Meters(self.to_f64())
+    }
+    /// In millimetres (for reports and traces).
+    pub fn to_mm(self) -> f64 {
+        self.to_m().mm()
     }
 }
 

@@ -72,7 +72,7 @@ fn monitor_diagnoses_simulated_releases() {
                 * 3f64.sqrt()
         };
         for _ in 0..6000 {
-            let p = pbm::PressureQ24(twin.state().p_q24).to_bar_g();
+            let p = twin.state().p.to_bar_g();
             monitor.update(adc_from_bar(pbm::BarG(p.0 + noise())), true);
             twin.update(true);
         }

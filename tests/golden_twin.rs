@@ -14,7 +14,8 @@
 mod golden;
 
 use golden::{Checkpoint, GoldenError, CHECKPOINT_UPDATES};
-use pbm::{Twin, TwinParams};
+use pbm::fixed::Q;
+use pbm::{MetersQ32, PressureQ24, Twin, TwinParams};
 use proptest::prelude::*;
 
 const GOLDEN_PATH: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/golden/nominal_checkpoints.csv");
@@ -31,7 +32,7 @@ fn host_checkpoints() -> Vec<Checkpoint> {
             updates += 1;
         }
         let s = sample.expect("checkpoints are increasing and > 0");
-        out.push(Checkpoint { updates: target, p_q24: s.pressure.0, x_q32: s.travel_q32 });
+        out.push(Checkpoint { updates: target, p_q24: s.pressure.0, x_q32: s.travel.0 });
     }
     out
 }
@@ -74,11 +75,12 @@ fn golden_checkpoints_are_plausible() {
     // Guards against regenerating the file from a broken twin: SPEC §3 landmarks.
     let rows = host_checkpoints();
     let at = |updates: u32| rows.iter().find(|c| c.updates == updates).expect("checkpoint exists");
-    let bar_g = |c: &Checkpoint| f64::from(c.p_q24) / f64::from(1 << 24) - 1.0;
+    let bar_g = |c: &Checkpoint| PressureQ24(c.p_q24).to_bar_g().0;
     assert!(at(100).x_q32 == 0, "piston still applied at 1 s");
     let end = at(6000);
     assert!((bar_g(end) - 7.7).abs() < 0.01, "plateau at supply, got {}", bar_g(end));
-    let stroke_m = f64::from(end.x_q32) / 4_294_967_296.0;
+    let stroke: MetersQ32 = Q(end.x_q32);
+    let stroke_m = stroke.to_m().0;
     assert!((stroke_m - 0.060).abs() < 1e-6, "piston at its 60 mm end stop, got {stroke_m}");
 }
 

@@ -305,7 +305,7 @@ mod tests {
         let mut plant = Twin::new(&params).unwrap();
         let mut monitor = Monitor::new(&params).unwrap();
         let mut fx = FeatureExtractor::new();
-        let mut p = plant.state().p_q24;
+        let mut p = plant.state().p.0;
         for _ in 0..6000 {
             let step = monitor.update(adc_from_bar(PressureQ24(p).to_bar_g()), true);
             fx.update(&step);

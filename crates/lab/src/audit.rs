@@ -296,7 +296,7 @@ pub fn twin_trace(params: &TwinParams, n: usize) -> Option<(Vec<f64>, Vec<f64>)>
     for _ in 1..n {
         let s = twin.update(true);
         p.push(s.pressure.to_bar_g().0);
-        x.push(s.travel().mm());
+        x.push(s.travel.to_mm());
     }
     Some((p, x))
 }

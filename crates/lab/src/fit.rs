@@ -102,7 +102,7 @@ impl FitParams {
 pub fn simulate_twin(params: &TwinParams, samples: usize) -> Result<Vec<f64>, pbm::ParamError> {
     let mut twin = Twin::new(params)?;
     let mut out = Vec::with_capacity(samples);
-    let mut p = twin.state().p_q24;
+    let mut p = twin.state().p.0;
     for _ in 0..samples {
         out.push(pbm::PressureQ24(p).to_bar_g().0);
         p = twin.update(true).pressure.0;

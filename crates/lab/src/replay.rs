@@ -333,7 +333,7 @@ fn result_fields(s: &ReplaySample) -> [String; 12] {
         measured,
         format!("{:.5}", s.twin_bar()),
         residual,
-        format!("{:.3}", s.step.twin.travel().mm()),
+        format!("{:.3}", s.step.twin.travel.to_mm()),
         s.step.measured.err().map_or("", |f| f.label()).to_owned(),
         format!("{:?}", e.phase),
         opt(e.orifice_mm, 4),

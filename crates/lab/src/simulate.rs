@@ -42,7 +42,7 @@ pub fn simulate(engine: Engine, params: &TwinParams, duration_s: f64) -> Result<
             for i in 0..n {
                 out.push(SimSample { t_s: i as f64 * SAMPLE_PERIOD_S, p_bar: sample.0, x_mm: sample.1 });
                 let s = twin.update(true);
-                sample = (s.pressure.to_bar_g().0, s.travel().mm());
+                sample = (s.pressure.to_bar_g().0, s.travel.to_mm());
             }
         }
         Engine::F64 => {
@@ -62,7 +62,7 @@ pub fn simulate(engine: Engine, params: &TwinParams, duration_s: f64) -> Result<
 
 fn twin_sample_now(twin: &Twin) -> (f64, f64) {
     let s = twin.state();
-    (pbm::PressureQ24(s.p_q24).to_bar_g().0, f64::from(s.x_q32) / 4_294_967_296.0 * 1e3)
+    (s.p.to_bar_g().0, s.x.to_mm())
 }
 
 /// First time (s) the pressure reaches `level` bar g, linearly interpolated between samples.

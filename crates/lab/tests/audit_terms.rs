@@ -92,7 +92,7 @@ fn base_bits_unchanged_with_extensions_off() {
                 done += 1;
             }
             let s = last.expect("increasing checkpoints");
-            assert_eq!((s.pressure.0, s.travel_q32), (p_q24, x_q32), "checkpoint at {updates} updates");
+            assert_eq!((s.pressure.0, s.travel.0), (p_q24, x_q32), "checkpoint at {updates} updates");
         }
     }
 }

@@ -76,7 +76,7 @@ async fn release_task() {
             sample = Some(twin.update(true));
             updates += 1;
         }
-        let (p, x) = sample.map_or((0, 0), |s| (s.pressure.0, s.travel_q32));
+        let (p, x) = sample.map_or((0, 0), |s| (s.pressure.0, s.travel.0));
         let ok = p == cp.p_q24 && x == cp.x_q32;
         failures += u32::from(!ok);
         println!(
