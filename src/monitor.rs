@@ -130,9 +130,12 @@ impl Monitor {
     }
 
     /// The release command ended without a falling edge being seen (e.g. the input stopped):
-    /// the next sample with the command on starts a new release, as after a falling edge.
+    /// the next sample with the command on starts a new release, as after a falling edge, for
+    /// the twin, the online estimator and the plausibility checks alike.
     pub fn end_release(&mut self) {
         self.valve_was_open = false;
+        self.check.end_release();
+        self.estimator.end_release();
     }
 
     /// The status/heartbeat report for the current state.

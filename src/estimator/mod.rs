@@ -435,6 +435,14 @@ impl ReleaseEstimator {
         self.last_error
     }
 
+    /// The release command ended without a sample showing it (the input stopped): idle, the
+    /// last estimates kept for reporting, as after a falling edge; the next sample with the
+    /// command on starts a new release.
+    pub fn end_release(&mut self) {
+        self.in_release = false;
+        self.phase = Phase::Idle;
+    }
+
     /// Processes one sample: `pressure` is the measured chamber pressure (`None` when the
     /// reading is a sensor fault), `valve_open` the release command. A rising edge of the
     /// command starts a new release and resets the estimator; while the valve is closed the

@@ -120,15 +120,21 @@ impl Pipeline {
     /// The input ended (no more samples): closes an open diagnosis and returns its report with
     /// the frames of one last transmit tick (the fault report, and the status if one is due).
     /// `None` (nothing to send) when no diagnosis was open.
+    ///
+    /// Either way the release ends: the next sample with the command on is a new release (a
+    /// new diagnosis; twin, features, estimator and plausibility checks restarted), also when
+    /// the timeout had already closed the diagnosis with the command still on.
     pub fn close(&mut self) -> Option<(FaultReport, Outbox)> {
-        if !self.diagnosing {
-            return None;
-        }
-        let report = self.close_diagnosis();
-        // The monitor too: the next command is a new release (its twin restarts).
+        let closed = if self.diagnosing {
+            let report = self.close_diagnosis();
+            // Status and report as the last sample left them (before the release ends below).
+            Some((report, self.reporter.step(&self.monitor.status(), Some(&report), false)))
+        } else {
+            None
+        };
         self.valve_was_open = false;
         self.monitor.end_release();
-        Some((report, self.reporter.step(&self.monitor.status(), Some(&report), false)))
+        closed
     }
 
     fn close_diagnosis(&mut self) -> FaultReport {
@@ -262,6 +268,42 @@ mod tests {
         assert_eq!(s.monitor.samples_since_release, 0, "a new release for the monitor too");
         assert_eq!(s.monitor.twin.pressure, PressureQ24::ATMOSPHERE, "twin restarted from the vented state");
         assert!(pipe.diagnosing());
+    }
+
+    /// Review finding (issue 16): the end of the input must end the release for every part of
+    /// the pipeline, whether its diagnosis was still open (a short input) or already closed by
+    /// the timeout with the command still on. The next sample with the command on is then a
+    /// fresh release: a new diagnosis, the twin back in the applied state, sample 0, features,
+    /// online estimator and plausibility checks restarted (a fault latched in the previous
+    /// release is forgotten).
+    #[test]
+    fn close_then_a_new_command_starts_a_fresh_release() {
+        use crate::report::EstimatorState;
+        let fresh_first = Pipeline::nominal().unwrap().step(noisy(0.0, 0), true);
+        for samples in [500, DIAGNOSIS_WINDOW_SAMPLES + 100] {
+            let mut pipe = Pipeline::nominal().unwrap();
+            let mut plant = Twin::new(&TwinParams::nominal()).unwrap();
+            let mut p = PressureQ24::ATMOSPHERE;
+            for i in 0..samples {
+                // The sensor freezes for the last second: a fault latched in this release.
+                let adc = if i + 100 >= samples { adc_from_bar(p.to_bar_g()) } else { noisy(p.to_bar_g().0, i) };
+                pipe.step(adc, true);
+                if i + 100 < samples {
+                    p = plant.update(true).pressure;
+                }
+            }
+            assert!(pipe.monitor().sensor_fault().is_some(), "{samples}: the frozen second latched a fault");
+            assert_eq!(pipe.close().is_some(), samples < DIAGNOSIS_WINDOW_SAMPLES, "{samples}");
+            let s = pipe.step(noisy(0.0, 0), true);
+            assert!(pipe.diagnosing(), "{samples}: a new diagnosis is open");
+            assert_eq!(s.monitor.samples_since_release, 0, "{samples}: sample 0 of a new release");
+            assert_eq!(s.monitor.twin, fresh_first.monitor.twin, "{samples}: twin restarted from the applied state");
+            assert_eq!(pipe.monitor().features().samples(), 1, "{samples}: features restarted");
+            assert_eq!(s.monitor.estimates, fresh_first.monitor.estimates, "{samples}: estimator restarted");
+            assert_eq!(pipe.monitor().status().estimator, EstimatorState::Converging, "{samples}");
+            assert_eq!(s.monitor.sensor, None, "{samples}: the previous release's fault is forgotten");
+            assert_eq!(pipe.monitor().sensor_fault(), None, "{samples}");
+        }
     }
 
     #[test]
