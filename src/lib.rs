@@ -17,9 +17,10 @@
 //! - [`report`]: fault and status reports, independent of the CAN layout.
 //! - [`reservoir`]: a compressor-fed air reservoir built from the twin's pieces (the model of
 //!   the real MetroPT-3 data, SPEC §8).
-//! - [`can`]: CAN frames to the cab display (DBC layout, E2E, encoder, decoder, schedule).
-//! - [`pipeline`]: the whole per-sample path (monitor, diagnosis policy, CAN schedule) and the
-//!   candump log format, shared by the firmware and `host-sim replay --can-log`.
+//! - [`can`]: CAN frames to the cab display (DBC layout, E2E, encoder, decoder, schedule) and
+//!   the candump log format.
+//! - [`pipeline`]: the whole per-sample path (monitor, diagnosis policy, CAN schedule), shared
+//!   by the firmware and `host-sim replay --can-log`.
 #![cfg_attr(not(feature = "std"), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]

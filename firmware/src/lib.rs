@@ -13,7 +13,7 @@
 //!
 //! - [`adc`]: the pressure ADC trait and the QEMU trace player.
 //! - [`candump`]: an `embedded_can::blocking::Can` that writes candump log lines (the core's
-//!   `pbm::pipeline::candump` formatter).
+//!   `pbm::can::candump` formatter).
 //! - [`stack`]: peak stack by painting.
 //! - [`vectors`]: the 32 device interrupt vectors of the MPS2 AN386.
 //!

@@ -1,7 +1,8 @@
 //! The whole per-sample path of the brake controller in one place: ADC reading and valve
 //! command in, CAN frames out. The firmware's monitor task and `host-sim replay --can-log` both
 //! drive this type, so the two cannot drift apart: same monitor, same diagnosis policy, same
-//! transmit schedule, same counters, same bytes (and [`candump`] writes the same log lines).
+//! transmit schedule, same counters, same bytes (and [`crate::can::candump`] writes the same log
+//! lines).
 //!
 //! Per sample ([`Pipeline::step`]): [`Monitor::update`] (twin, residual, online estimator,
 //! classifier features), the diagnosis policy below, then the core's CAN transmit schedule
@@ -32,8 +33,6 @@
 //!
 //! The classifier runs once per release (≈ 30 000 instructions on the Cortex-M4F, about 1 ms at
 //! 25 MHz, well inside one 10 ms sample period), so the per-sample cost stays small.
-
-pub mod candump;
 
 use crate::can::{CanReporter, Outbox};
 use crate::monitor::{Monitor, MonitorStep};

@@ -48,12 +48,12 @@ impl std::error::Error for LogError {}
 
 /// Formats a frame as `ID#DATA` (or `ID#R`, `ID#R<len>` for a remote frame).
 pub fn format_frame(frame: &CanFrame) -> String {
-    pbm::pipeline::candump::FrameText(frame).to_string()
+    pbm::can::candump::FrameText(frame).to_string()
 }
 
 /// One complete log line (without the newline).
 pub fn format_line(time_us: u64, iface: &str, frame: &CanFrame) -> String {
-    pbm::pipeline::candump::Line { time_us, iface, frame }.to_string()
+    pbm::can::candump::Line { time_us, iface, frame }.to_string()
 }
 
 fn parse_time(tok: &str) -> Result<u64, String> {
