@@ -45,11 +45,13 @@ fn compiled_model_matches_golden_vectors() {
     assert!(implausible >= 1, "the golden file must exercise the implausible path");
 }
 
-/// The monitor carries the classifier: a simulated healthy release is diagnosed `normal`, a
-/// blocked orifice `orifice_block`, through `Monitor::diagnosis` alone.
+/// The pipeline carries the classifier: a simulated healthy release is diagnosed `normal`, a
+/// blocked orifice `orifice_block`, a leak `air_leak`, a low supply `low_supply`, through
+/// `Pipeline::step` alone (the diagnosis the 60 s window closes, and `Pipeline::diagnosis` after
+/// the valve closed).
 #[test]
-fn monitor_diagnoses_simulated_releases() {
-    use pbm::monitor::Monitor;
+fn pipeline_diagnoses_simulated_releases() {
+    use pbm::pipeline::Pipeline;
     use pbm::report::Verdict;
     use pbm::sensor::adc_from_bar;
     use pbm::{FaultClass, Twin, TwinParams};
@@ -60,7 +62,7 @@ fn monitor_diagnoses_simulated_releases() {
         (TwinParams::nominal().with_supply_bar_g(5.0), FaultClass::LowSupply),
     ] {
         let mut twin = Twin::new(&plant).unwrap();
-        let mut monitor = Monitor::new(&TwinParams::nominal()).unwrap();
+        let mut pipeline = Pipeline::new(&TwinParams::nominal()).unwrap();
         // Transducer noise (SPEC §5: σ = 0.01 bar; a sum of four uniforms from a fixed LCG):
         // a noise-free reading is a frozen sensor to the monitor's plausibility checks.
         let mut lcg = 7u32;
@@ -71,13 +73,16 @@ fn monitor_diagnoses_simulated_releases() {
             }) * 0.01
                 * 3f64.sqrt()
         };
+        let mut closed = None;
         for _ in 0..6000 {
             let p = pbm::PressureQ24(twin.state().p_q24).to_bar_g();
-            monitor.update(adc_from_bar(pbm::BarG(p.0 + noise())), true);
+            closed = pipeline.step(adc_from_bar(pbm::BarG(p.0 + noise())), true).closed.or(closed);
             twin.update(true);
         }
-        monitor.update(adc_from_bar(pbm::BarG(0.0)), false); // valve closed: verdict kept
-        let report = monitor.diagnosis();
+        assert_eq!(pipeline.report(), closed.as_ref(), "{want}: closed by the 60 s window");
+        pipeline.step(adc_from_bar(pbm::BarG(0.0)), false); // valve closed: verdict kept
+        let report = pipeline.diagnosis();
+        assert_eq!(Some(report.verdict), closed.map(|r| r.verdict), "{want}");
         match report.verdict {
             Verdict::Class { class, confidence_pct } => {
                 assert_eq!(class, want, "{plant:?}");

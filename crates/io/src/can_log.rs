@@ -12,6 +12,7 @@ use crate::can_bus::FrameSink;
 use embedded_can::{ExtendedId, Frame, Id, StandardId};
 use pbm::can::{CanFrame, CanReporter};
 use pbm::monitor::Monitor;
+use pbm::pipeline::fault_report;
 use pbm::report::Verdict;
 use std::io::{BufRead, Write};
 
@@ -237,7 +238,7 @@ impl<S: FrameSink> CanRecorder<S> {
         release_active: bool,
     ) -> std::io::Result<usize> {
         let status = monitor.status();
-        let fault = verdict.map(|v| monitor.fault_report(v));
+        let fault = verdict.map(|v| fault_report(monitor, v));
         let out = self.reporter.step(&status, fault.as_ref(), release_active);
         for f in out.as_slice() {
             self.sink.send(time_us, f)?;
