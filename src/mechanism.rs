@@ -457,11 +457,6 @@ impl Scope {
         let (lo, hi) = self.plausible.get(i).copied().unwrap_or((0.0, 0.0));
         lo + (hi - lo) * u_value
     }
-
-    /// True when `value` lies in one of the plausible intervals.
-    pub fn is_plausible(&self, value: f64) -> bool {
-        self.plausible.iter().any(|&(lo, hi)| value >= lo && value <= hi)
-    }
 }
 
 /// The magnitudes of every mechanism, indexed by [`Mechanism`]; each at its off value

@@ -232,15 +232,8 @@ impl QuantModel<'_> {
         Ok(n)
     }
 
-    /// Checks that the features `x` lie in the training region of output `index` (see the
-    /// module docs).
-    pub fn check_class_region(&self, index: usize, x: &[f32]) -> Result<(), ModelError> {
-        let mut mapped = [0.0f32; MAX_WIDTH];
-        let n = self.map_inputs(x, &mut mapped)?;
-        self.region_check(index, &mapped[..n])
-    }
-
-    /// [`Self::check_class_region`] on mapped inputs.
+    /// Checks that the mapped inputs lie in the training region of output `index` (the class
+    /// region of the module docs).
     fn region_check(&self, index: usize, mapped: &[f32]) -> Result<(), ModelError> {
         let n = mapped.len();
         let class = *self.classes.get(index).ok_or(ModelError::Shape)?;
@@ -321,7 +314,7 @@ impl QuantModel<'_> {
     }
 
     /// Quantizes the `f32` features `x`, runs the network and checks that `x` lies in the
-    /// training region of the class it names ([`Self::check_class_region`]).
+    /// training region of the class it names (the class region of the module docs).
     pub fn classify_f32(&self, x: &[f32]) -> Result<Inference, ModelError> {
         let mut mapped = [0.0f32; MAX_WIDTH];
         let n = self.map_inputs(x, &mut mapped)?;
