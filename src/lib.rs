@@ -14,13 +14,30 @@
 //! - [`mechanism`]: the optional mechanisms beyond SPEC §2, described once (name, unit, ranges,
 //!   plain-language description) for validation, generator, audits, help and reports.
 //! - [`metrics`]: NMSE (SPEC §6).
-//! - [`monitor`]: the per-sample pipeline (ADC in, reports out).
+//! - [`monitor`]: the per-sample monitor: twin, residual, plausibility checks and online
+//!   estimator (ADC in, step and status out).
+//! - [`estimator`]: the online estimator of the release's physical parameters.
+//! - [`features`]: the classifier's online features of a release.
+//! - [`classifier`]: the int8 fault classifier and the rules of its verdict.
 //! - [`report`]: fault and status reports, independent of the CAN layout.
 //! - [`reservoir`]: a compressor-fed air reservoir built from the twin's pieces (the model of
 //!   the real MetroPT-3 data, SPEC §8).
-//! - [`can`]: CAN frames to the cab display (DBC layout, E2E, encoder, decoder, schedule).
-//! - [`pipeline`]: the whole per-sample path (monitor, diagnosis policy, CAN schedule) and the
-//!   candump log format, shared by the firmware and `host-sim replay --can-log`.
+//! - [`can`]: CAN frames to the cab display (DBC layout, E2E, encoder, decoder, schedule) and
+//!   the candump log format.
+//! - [`pipeline`]: the whole per-sample path (monitor, release features, diagnosis policy, CAN
+//!   schedule), shared by the firmware and `host-sim replay --can-log`.
+//!
+//! The modules form layers; each uses only modules of the layers above it (no cycles; checked by
+//! `tests/module_layers.rs`):
+//!
+//! 0. `fixed` (the Q formats);
+//! 1. `units`, `fault`, `metrics`, `mechanism`;
+//! 2. `params`, `sensor`;
+//! 3. `twin`, `plausibility`, `report`;
+//! 4. `estimator`, `reservoir`, `can`;
+//! 5. `monitor` (twin, plausibility checks, estimator), `features`;
+//! 6. `classifier` (on the features);
+//! 7. `pipeline` (monitor, features, classifier, diagnosis policy, CAN schedule).
 #![cfg_attr(not(feature = "std"), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]

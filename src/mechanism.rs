@@ -19,7 +19,39 @@
 //! which varies by ±5 % per locomotive: between ≈ 235 K and ≈ 375 K it cannot be told from
 //! manufacturing spread, so its plausible range is the hot side beyond that limit.
 
-use crate::params::{ParamError, TEMPERATURE_K};
+/// A magnitude a model cannot take ([`Extensions::validate_in`]); the parameter sets wrap it
+/// in their `ParamError` (`crate::params`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MechanismError {
+    /// The mechanism's magnitude lies outside the range the model supports ([`Scope::valid`]).
+    OutOfRange(Mechanism),
+    /// The mechanism is on but the model does not have it.
+    Unsupported(Mechanism),
+}
+
+impl core::fmt::Display for MechanismError {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        match *self {
+            Self::OutOfRange(m) => {
+                let d = m.descriptor();
+                let (lo, hi) = d.brake.valid;
+                write!(f, "{m} out of the supported range (brake twin: {lo}..={hi} {}", d.unit)?;
+                if let Some(r) = d.reservoir {
+                    write!(f, "; reservoir: {}..={} {}", r.valid.0, r.valid.1, d.unit)?;
+                }
+                f.write_str(")")
+            }
+            Self::Unsupported(m) => write!(f, "{m} is not a mechanism of this model"),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for MechanismError {}
+
+/// The gas temperature of the base model, K: `params::TEMPERATURE_K` (equal by a test there;
+/// this module sits below `params` and does not import it).
+const BASE_TEMPERATURE_K: f64 = 293.15;
 
 /// One optional mechanism (the index of its entry in [`MECHANISMS`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -323,7 +355,7 @@ pub const MECHANISMS: [Descriptor; Mechanism::COUNT] = [
         mechanism: Mechanism::GasTemperature,
         name: "gas_temperature",
         unit: "K",
-        off: TEMPERATURE_K,
+        off: BASE_TEMPERATURE_K,
         description: "The supply air arrives at this temperature instead of 293 K (air straight from a \
                       compressor whose aftercooler failed).",
         brake: Scope {
@@ -425,11 +457,6 @@ impl Scope {
         let (lo, hi) = self.plausible.get(i).copied().unwrap_or((0.0, 0.0));
         lo + (hi - lo) * u_value
     }
-
-    /// True when `value` lies in one of the plausible intervals.
-    pub fn is_plausible(&self, value: f64) -> bool {
-        self.plausible.iter().any(|&(lo, hi)| value >= lo && value <= hi)
-    }
 }
 
 /// The magnitudes of every mechanism, indexed by [`Mechanism`]; each at its off value
@@ -481,20 +508,20 @@ impl Extensions {
 
     /// Checks every magnitude against the brake twin's supported range ([`Scope::valid`]); the
     /// error names the first mechanism outside it (NaN is outside every range).
-    pub fn validate(&self) -> Result<(), ParamError> {
+    pub fn validate(&self) -> Result<(), MechanismError> {
         self.validate_in(|d| Some(d.brake))
     }
 
     /// Checks every magnitude against the range `scope` gives for its mechanism; a mechanism
-    /// that is on where `scope` gives none is [`ParamError::Unsupported`].
-    pub fn validate_in(&self, scope: impl Fn(&Descriptor) -> Option<Scope>) -> Result<(), ParamError> {
+    /// that is on where `scope` gives none is [`MechanismError::Unsupported`].
+    pub fn validate_in(&self, scope: impl Fn(&Descriptor) -> Option<Scope>) -> Result<(), MechanismError> {
         for d in &MECHANISMS {
             let value = self[d.mechanism];
             match scope(d) {
                 Some(s) if value >= s.valid.0 && value <= s.valid.1 => {}
-                Some(_) => return Err(ParamError::Extension(d.mechanism)),
+                Some(_) => return Err(MechanismError::OutOfRange(d.mechanism)),
                 None if value == d.off => {}
-                None => return Err(ParamError::Unsupported(d.mechanism)),
+                None => return Err(MechanismError::Unsupported(d.mechanism)),
             }
         }
         Ok(())
@@ -553,12 +580,12 @@ mod tests {
         let mut e = Extensions::NONE;
         assert!(e.is_none() && e.validate().is_ok() && e.active().count() == 0);
         e[Mechanism::SensorGain] = 9.0;
-        assert_eq!(e.validate(), Err(ParamError::Extension(Mechanism::SensorGain)));
+        assert_eq!(e.validate(), Err(MechanismError::OutOfRange(Mechanism::SensorGain)));
         e[Mechanism::SensorGain] = f64::NAN;
-        assert_eq!(e.validate(), Err(ParamError::Extension(Mechanism::SensorGain)));
+        assert_eq!(e.validate(), Err(MechanismError::OutOfRange(Mechanism::SensorGain)));
         let e = Extensions::NONE.with(Mechanism::RegulatorDroop, 0.5);
         assert!(e.validate().is_ok());
-        assert_eq!(e.validate_in(|d| d.reservoir), Err(ParamError::Unsupported(Mechanism::RegulatorDroop)));
+        assert_eq!(e.validate_in(|d| d.reservoir), Err(MechanismError::Unsupported(Mechanism::RegulatorDroop)));
         let mut active = e.active();
         assert_eq!(active.next(), Some((Mechanism::RegulatorDroop, 0.5)));
         assert_eq!(active.next(), None);

@@ -1,14 +1,16 @@
-//! The per-sample monitor pipeline: ADC reading and valve command in, twin, residual and
-//! reports out. This is the one entry point the firmware and `host-sim replay` call.
+//! The per-sample monitor: ADC reading and valve command in; the twin's prediction, the
+//! residual, the plausibility checks of the signal and the online estimates out.
 //!
-//! Every sample also feeds the online [`ReleaseEstimator`]; [`MonitorStep::estimates`] carries
-//! its current estimates, [`Monitor::status`] its state, and [`Monitor::fault_report`] fills the
-//! estimated supply and leak of a [`FaultReport`] around a verdict from the classifier.
+//! Every sample feeds the twin (restarted at each release command), the plausibility checks
+//! ([`SignalCheck`]) and the online [`ReleaseEstimator`]; [`MonitorStep`] carries what they
+//! said about the sample and [`Monitor::status`] the status report. The release features, the
+//! classifier and the diagnosis policy are built on top of it by [`crate::pipeline`], which is
+//! the entry point the firmware and `host-sim replay` call.
 
 use crate::estimator::{Estimates, EstimatorConfig, ReleaseEstimator};
 use crate::params::{ParamError, TwinParams};
 use crate::plausibility::{Detected, SignalCheck};
-use crate::report::{FaultReport, NoDiagnosis, StatusReport, Verdict};
+use crate::report::StatusReport;
 use crate::sensor::{pressure_from_adc, SensorFault};
 use crate::twin::{Twin, TwinSample};
 use crate::units::{AdcCounts, PressureQ24};
@@ -46,8 +48,6 @@ pub struct Monitor {
     /// What the checks said about the last sample.
     last_sensor: Option<SensorFault>,
     estimator: ReleaseEstimator,
-    /// Online features of the current (or last) release, for the classifier.
-    features: crate::features::ReleaseFeatures,
 }
 
 impl Monitor {
@@ -83,7 +83,6 @@ impl Monitor {
             check: SignalCheck::new(),
             last_sensor: None,
             estimator,
-            features: crate::features::ReleaseFeatures::new(),
         }
     }
 
@@ -115,10 +114,6 @@ impl Monitor {
             samples_since_release: if valve_open { self.samples_since_release } else { 0 },
             estimates: self.estimator.estimates(),
         };
-        if valve_open {
-            // Only release samples: after the valve closes the last release stays diagnosable.
-            self.features.update(&step);
-        }
         self.twin.update(valve_open);
         if valve_open {
             self.samples_since_release = self.samples_since_release.saturating_add(1);
@@ -130,9 +125,12 @@ impl Monitor {
     }
 
     /// The release command ended without a falling edge being seen (e.g. the input stopped):
-    /// the next sample with the command on starts a new release, as after a falling edge.
+    /// the next sample with the command on starts a new release, as after a falling edge, for
+    /// the twin, the online estimator and the plausibility checks alike.
     pub fn end_release(&mut self) {
         self.valve_was_open = false;
+        self.check.end_release();
+        self.estimator.end_release();
     }
 
     /// The status/heartbeat report for the current state.
@@ -167,43 +165,10 @@ impl Monitor {
         self.check.latched()
     }
 
-    /// Online features of the current (or last) release.
-    pub fn features(&self) -> &crate::features::ReleaseFeatures {
-        &self.features
-    }
-
-    /// The fault report of the current (or last) release with the classifier compiled into the
-    /// core: a class, or 'cannot diagnose' (a sensor fault found by the range or plausibility
-    /// checks, too short, unfamiliar release). Valid at any time since the release command
-    /// (early diagnosis); send it when the release completes or at a timeout.
-    pub fn diagnosis(&self) -> FaultReport {
-        let verdict = match self.check.latched() {
-            Some(d) => Verdict::CannotDiagnose(NoDiagnosis::SensorFault(d.fault)),
-            // The twin starts every release from a vented chamber; this one did not.
-            None if self.check.unvented_start() => Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar),
-            None => match crate::classifier::diagnose(&self.features) {
-                // The class must agree with the parameters the estimator measured.
-                Verdict::Class { class, .. } if !crate::classifier::consistent(class, &self.estimator.estimates()) => {
-                    Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar)
-                }
-                v => v,
-            },
-        };
-        self.fault_report(verdict)
-    }
-
-    /// A fault report for `verdict` (from the classifier) with the time since the release and
-    /// the estimated supply and leak filled in. `release_completed`: the estimator has seen
-    /// the final plateau.
-    pub fn fault_report(&self, verdict: Verdict) -> FaultReport {
-        let est = self.estimator.estimates();
-        FaultReport {
-            verdict,
-            time_since_release_cs: self.samples_since_release.min(u32::from(u16::MAX)) as u16,
-            supply_mbar: est.supply_mbar(),
-            leak_um: est.leak_um(),
-            release_completed: est.phase == crate::estimator::Phase::Plateau,
-        }
+    /// The release did not start from a vented chamber as far as the reading tells
+    /// ([`SignalCheck::unvented_start`]): not a release the twin can judge.
+    pub fn unvented_start(&self) -> bool {
+        self.check.unvented_start()
     }
 }
 
@@ -231,8 +196,8 @@ mod tests {
     }
 
     #[test]
-    fn estimates_reach_the_reports() {
-        use crate::report::{EstimatorState, NoDiagnosis, Verdict};
+    fn estimates_reach_the_step_and_the_status() {
+        use crate::report::EstimatorState;
         let params = TwinParams::nominal().with_leak_mm(0.8);
         let mut plant = Twin::new(&params).unwrap();
         let mut m = Monitor::new(&TwinParams::nominal()).unwrap();
@@ -250,15 +215,10 @@ mod tests {
         assert!((e.orifice_mm.unwrap() - 1.25).abs() < 0.05, "{e:?}");
         assert!((e.supply_bar_g.unwrap() - 7.7).abs() < 0.2, "{e:?}");
         assert_eq!(m.status().estimator, EstimatorState::Settled);
-        let r = m.fault_report(Verdict::CannotDiagnose(NoDiagnosis::TooShort));
-        assert_eq!(r.supply_mbar, e.supply_mbar());
-        assert_eq!(r.leak_um, e.leak_um());
-        assert!(r.leak_um > 750 && r.leak_um < 850 && r.supply_mbar > 7500, "{r:?}");
-        assert!(r.release_completed);
-        assert_eq!(r.time_since_release_cs, 6000);
+        assert_eq!(m.samples_in_release(), 6000);
         // Valve closed: idle, estimates kept for the report.
         m.update(adc_from_bar(p.to_bar_g()), false);
         assert_eq!(m.status().estimator, EstimatorState::Idle);
-        assert_eq!(m.fault_report(Verdict::CannotDiagnose(NoDiagnosis::TooShort)).leak_um, r.leak_um);
+        assert_eq!(m.estimator().estimates().leak_um(), e.leak_um());
     }
 }

@@ -1,6 +1,6 @@
 //! Physical parameters of the parking brake (SPEC §3) and the physical constants of SPEC §2.
 
-use crate::mechanism::{Extensions, Mechanism};
+use crate::mechanism::{Extensions, Mechanism, MechanismError};
 use crate::units::{BarG, Meters};
 
 /// Specific heat ratio of air.
@@ -162,7 +162,7 @@ impl TwinParams {
         if self.static_n < self.coulomb_n {
             return Err(ParamError::Friction);
         }
-        self.ext.validate()
+        self.ext.validate().map_err(ParamError::from)
     }
 }
 
@@ -206,16 +206,8 @@ pub enum ParamError {
 impl core::fmt::Display for ParamError {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         let what = match *self {
-            Self::Extension(m) => {
-                let d = m.descriptor();
-                let (lo, hi) = d.brake.valid;
-                write!(f, "{m} out of the supported range (brake twin: {lo}..={hi} {}", d.unit)?;
-                if let Some(r) = d.reservoir {
-                    write!(f, "; reservoir: {}..={} {}", r.valid.0, r.valid.1, d.unit)?;
-                }
-                return f.write_str(")");
-            }
-            Self::Unsupported(m) => return write!(f, "{m} is not a mechanism of this model"),
+            Self::Extension(m) => return MechanismError::OutOfRange(m).fmt(f),
+            Self::Unsupported(m) => return MechanismError::Unsupported(m).fmt(f),
             Self::Supply => "supply pressure must be 0..=15 bar g",
             Self::Orifice => "orifice diameter must be 0..=10 mm",
             Self::Leak => "leak diameter must be 0..=5 mm",
@@ -235,5 +227,25 @@ impl core::fmt::Display for ParamError {
     }
 }
 
+impl From<MechanismError> for ParamError {
+    fn from(e: MechanismError) -> Self {
+        match e {
+            MechanismError::OutOfRange(m) => Self::Extension(m),
+            MechanismError::Unsupported(m) => Self::Unsupported(m),
+        }
+    }
+}
+
 #[cfg(feature = "std")]
 impl std::error::Error for ParamError {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gas_temperature_is_off_at_the_base_model_temperature() {
+        assert_eq!(Mechanism::GasTemperature.descriptor().off, TEMPERATURE_K);
+        assert!(!Extensions::NONE.is_on(Mechanism::GasTemperature));
+    }
+}

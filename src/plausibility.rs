@@ -290,6 +290,12 @@ impl SignalCheck {
         }
     }
 
+    /// The release command ended without a sample showing it (the input stopped): the next
+    /// sample with the command on starts a new release, as after a falling edge.
+    pub fn end_release(&mut self) {
+        self.valve_was_open = false;
+    }
+
     /// One 100 Hz sample: the raw ADC code and the release command. Returns the fault that makes
     /// the signal untrustworthy now: this sample's range fault, else the fault latched since
     /// the last command.

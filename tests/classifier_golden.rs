@@ -1,55 +1,87 @@
 //! The int8 classifier compiled into the core reproduces the shared golden vectors exactly
 //! (`tests/golden/classifier_golden.txt`, written by `host-sim train --golden`). The firmware
-//! checks the same file on thumbv7em in QEMU: identical integers on both targets.
+//! checks the same file on thumbv7em in QEMU (`classifier-check`, run by `cargo xtask fw-qemu`):
+//! identical integers on both targets.
+//!
+//! The file is read and checked with the firmware's own code (one implementation, included by
+//! path).
 
+#[path = "../firmware/src/classifier_golden.rs"]
+#[allow(dead_code)]
+mod classifier_golden;
+
+use classifier_golden::{check, vectors, Expected, Mismatch};
 use pbm::classifier::model_weights::MODEL;
-use pbm::classifier::ModelError;
 
 const GOLDEN: &str = include_str!("golden/classifier_golden.txt");
-
-fn ints<T: std::str::FromStr>(field: &str, key: &str) -> Vec<T> {
-    let rest = field.trim().strip_prefix(key).unwrap_or_else(|| panic!("expected `{key}` in `{field}`"));
-    rest.split_whitespace().map(|s| s.parse().ok().expect("integer")).collect()
-}
 
 #[test]
 fn compiled_model_matches_golden_vectors() {
     MODEL.validate().expect("compiled model is consistent");
-    let mut checked = 0;
-    let mut implausible = 0;
-    for (n, line) in GOLDEN.lines().enumerate().filter(|(_, l)| !l.starts_with('#') && !l.trim().is_empty()) {
-        let fields: Vec<&str> = line.split('|').collect();
-        let x: Vec<f64> = fields[0]
-            .trim()
-            .strip_prefix("x ")
-            .expect("x field")
-            .split_whitespace()
-            .map(|h| f64::from_bits(u64::from_str_radix(h, 16).expect("hex bits")))
-            .collect();
-        let mut q = vec![0i8; x.len()];
-        let quantized = MODEL.quantize_input(&x, &mut q);
-        if fields[1].trim() == "implausible" {
-            assert!(matches!(quantized, Err(ModelError::Implausible { .. })), "line {}", n + 1);
-            implausible += 1;
-            continue;
-        }
-        quantized.unwrap_or_else(|e| panic!("line {}: {e:?}", n + 1));
-        assert_eq!(q, ints::<i8>(fields[1], "q"), "line {}: int8 inputs", n + 1);
-        let inf = MODEL.infer(&q).expect("inference");
-        assert_eq!(inf.logits[..inf.n_classes].to_vec(), ints::<i8>(fields[2], "logits"), "line {}: logits", n + 1);
-        assert_eq!(inf.class.label(), fields[3].trim().strip_prefix("class ").expect("class"), "line {}", n + 1);
-        assert_eq!(vec![inf.confidence_pct], ints::<u8>(fields[4], "conf"), "line {}: confidence", n + 1);
-        checked += 1;
+    let summary = classifier_golden::check_all(&MODEL, GOLDEN, |_| {});
+    match summary.first_failure {
+        Some((line, Some(why))) => panic!("line {line}: {why} ({} failures)", summary.failures),
+        Some((line, None)) => panic!("line {line}: not a golden vector"),
+        None => {}
     }
-    assert!(checked >= 100, "only {checked} golden vectors");
-    assert!(implausible >= 1, "the golden file must exercise the implausible path");
+    assert!(summary.matched >= 100, "only {} golden vectors", summary.matched);
+    assert!(summary.implausible >= 1, "the golden file must exercise the implausible path");
 }
 
-/// The monitor carries the classifier: a simulated healthy release is diagnosed `normal`, a
-/// blocked orifice `orifice_block`, through `Monitor::diagnosis` alone.
+/// The shared check sees every kind of difference (it is what the firmware runs in QEMU).
 #[test]
-fn monitor_diagnoses_simulated_releases() {
-    use pbm::monitor::Monitor;
+fn golden_check_detects_each_mismatch() {
+    let first = |f: fn(&Expected<'_>) -> bool| vectors(GOLDEN).flatten().find(|v| f(&v.expected)).unwrap();
+    let output = first(|e| matches!(e, Expected::Output { .. }));
+    let implausible = first(|e| matches!(e, Expected::Implausible));
+    assert_eq!(check(&MODEL, &output), Ok(()));
+    assert_eq!(check(&MODEL, &implausible), Ok(()));
+    let perturbed = |change: fn(&mut Expected<'_>)| {
+        let mut v = output;
+        change(&mut v.expected);
+        check(&MODEL, &v)
+    };
+    assert_eq!(
+        perturbed(|e| if let Expected::Output { q, .. } = e {
+            q.as_mut_slice().iter_mut().for_each(|x| *x = x.wrapping_add(1))
+        }),
+        Err(Mismatch::Inputs)
+    );
+    assert_eq!(
+        perturbed(|e| if let Expected::Output { logits, .. } = e {
+            logits.as_mut_slice()[0] += 1
+        }),
+        Err(Mismatch::Logits)
+    );
+    assert_eq!(
+        perturbed(|e| if let Expected::Output { class, .. } = e {
+            *class = "no_such_class"
+        }),
+        Err(Mismatch::Class)
+    );
+    assert_eq!(
+        perturbed(|e| if let Expected::Output { confidence_pct, .. } = e {
+            *confidence_pct ^= 1
+        }),
+        Err(Mismatch::Confidence)
+    );
+    assert_eq!(perturbed(|e| *e = Expected::Implausible), Err(Mismatch::NotImplausible(None)));
+    let mut plausible = implausible;
+    plausible.expected = output.expected;
+    assert!(matches!(check(&MODEL, &plausible), Err(Mismatch::Quantize(_))));
+    // Lines that are not vectors are failures, never panics.
+    let s = classifier_golden::check_all(&MODEL, "# comment\n\nx 12 | q 1\nnonsense\n", |_| {});
+    assert_eq!((s.failures, s.first_failure), (2, Some((3, None))));
+    assert!(!s.passed(0));
+}
+
+/// The pipeline carries the classifier: a simulated healthy release is diagnosed `normal`, a
+/// blocked orifice `orifice_block`, a leak `air_leak`, a low supply `low_supply`, through
+/// `Pipeline::step` alone (the diagnosis the 60 s window closes, and `Pipeline::diagnosis` after
+/// the valve closed).
+#[test]
+fn pipeline_diagnoses_simulated_releases() {
+    use pbm::pipeline::Pipeline;
     use pbm::report::Verdict;
     use pbm::sensor::adc_from_bar;
     use pbm::{FaultClass, Twin, TwinParams};
@@ -60,7 +92,7 @@ fn monitor_diagnoses_simulated_releases() {
         (TwinParams::nominal().with_supply_bar_g(5.0), FaultClass::LowSupply),
     ] {
         let mut twin = Twin::new(&plant).unwrap();
-        let mut monitor = Monitor::new(&TwinParams::nominal()).unwrap();
+        let mut pipeline = Pipeline::new(&TwinParams::nominal()).unwrap();
         // Transducer noise (SPEC §5: σ = 0.01 bar; a sum of four uniforms from a fixed LCG):
         // a noise-free reading is a frozen sensor to the monitor's plausibility checks.
         let mut lcg = 7u32;
@@ -71,13 +103,16 @@ fn monitor_diagnoses_simulated_releases() {
             }) * 0.01
                 * 3f64.sqrt()
         };
+        let mut closed = None;
         for _ in 0..6000 {
             let p = twin.state().p.to_bar_g();
-            monitor.update(adc_from_bar(pbm::BarG(p.0 + noise())), true);
+            closed = pipeline.step(adc_from_bar(pbm::BarG(p.0 + noise())), true).closed.or(closed);
             twin.update(true);
         }
-        monitor.update(adc_from_bar(pbm::BarG(0.0)), false); // valve closed: verdict kept
-        let report = monitor.diagnosis();
+        assert_eq!(pipeline.report(), closed.as_ref(), "{want}: closed by the 60 s window");
+        pipeline.step(adc_from_bar(pbm::BarG(0.0)), false); // valve closed: verdict kept
+        let report = pipeline.diagnosis();
+        assert_eq!(Some(report.verdict), closed.map(|r| r.verdict), "{want}");
         match report.verdict {
             Verdict::Class { class, confidence_pct } => {
                 assert_eq!(class, want, "{plant:?}");

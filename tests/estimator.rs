@@ -150,7 +150,7 @@ proptest! {
                 prop_assert!(v.is_finite());
             }
             let _ = m.status();
-            let _ = m.fault_report(pbm::report::Verdict::CannotDiagnose(pbm::report::NoDiagnosis::TooShort));
+            let _ = pbm::pipeline::fault_report(&m, pbm::report::Verdict::CannotDiagnose(pbm::report::NoDiagnosis::TooShort));
         }
     }
 

@@ -3,14 +3,14 @@
 //! the host's standard output over semihosting. It implements [`embedded_can::blocking::Can`]
 //! like a real bxCAN/FDCAN driver, so the CAN task does not know which one it drives.
 //!
-//! The line is the core's [`pbm::pipeline::candump::Line`], the formatter `host-sim replay
+//! The line is the core's [`pbm::can::candump::Line`], the formatter `host-sim replay
 //! --can-log` uses too, encoded by hand into a stack buffer (no `core::fmt`). Time stamps are
 //! the monitor's sample clock ([`sample_time_us`]: sample n of the input at n × 10 ms), not the
 //! wall clock, so a QEMU run and a host replay of the same trace give identical logs.
 
 use embedded_can::ErrorKind;
+use pbm::can::candump::{sample_time_us, Line, MAX_LINE_LEN_WITHOUT_IFACE};
 use pbm::can::CanFrame;
-use pbm::pipeline::candump::{sample_time_us, Line, MAX_LINE_LEN_WITHOUT_IFACE};
 
 /// Interface name written in every line.
 pub const IFACE: &str = "can0";

@@ -10,20 +10,24 @@
 //! - [`console`]: text output and the process exit code over ARM semihosting, and the panic
 //!   handler.
 //! - [`golden`]: the host-computed checkpoints of the nominal release, compiled into flash.
+//! - [`classifier_golden`]: the host-computed golden vectors of the int8 classifier and their
+//!   check.
 //!
 //! - [`adc`]: the pressure ADC trait and the QEMU trace player.
 //! - [`candump`]: an `embedded_can::blocking::Can` that writes candump log lines (the core's
-//!   `pbm::pipeline::candump` formatter).
+//!   `pbm::can::candump` formatter).
 //! - [`stack`]: peak stack by painting.
 //! - [`vectors`]: the 32 device interrupt vectors of the MPS2 AN386.
 //!
-//! Binaries: `twin-check` (the twin in QEMU against the host's golden values), `monitor` (the
+//! Binaries: `twin-check` (the twin in QEMU against the host's golden values),
+//! `classifier-check` (the int8 classifier against the host's golden vectors), `monitor` (the
 //! monitor as embassy tasks: ADC, monitor, CAN, watchdog) and `bench` (cost figures).
 #![no_std]
 #![deny(missing_docs)]
 
 pub mod adc;
 pub mod candump;
+pub mod classifier_golden;
 pub mod console;
 pub mod executor;
 pub mod golden;

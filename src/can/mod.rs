@@ -19,7 +19,10 @@
 //! - [`codec`]: encoding, E2E CRC, stateless decoding.
 //! - [`decoder`]: stream decoder with counter tracking.
 //! - [`reporter`]: what to send per monitor sample.
+//! - [`candump`]: candump log lines of frames (the firmware's CAN stand-in in QEMU and the
+//!   host's logs write the same bytes).
 
+pub mod candump;
 pub mod codec;
 pub mod decoder;
 pub mod frame;

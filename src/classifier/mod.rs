@@ -232,15 +232,8 @@ impl QuantModel<'_> {
         Ok(n)
     }
 
-    /// Checks that the features `x` lie in the training region of output `index` (see the
-    /// module docs).
-    pub fn check_class_region(&self, index: usize, x: &[f32]) -> Result<(), ModelError> {
-        let mut mapped = [0.0f32; MAX_WIDTH];
-        let n = self.map_inputs(x, &mut mapped)?;
-        self.region_check(index, &mapped[..n])
-    }
-
-    /// [`Self::check_class_region`] on mapped inputs.
+    /// Checks that the mapped inputs lie in the training region of output `index` (the class
+    /// region of the module docs).
     fn region_check(&self, index: usize, mapped: &[f32]) -> Result<(), ModelError> {
         let n = mapped.len();
         let class = *self.classes.get(index).ok_or(ModelError::Shape)?;
@@ -321,7 +314,7 @@ impl QuantModel<'_> {
     }
 
     /// Quantizes the `f32` features `x`, runs the network and checks that `x` lies in the
-    /// training region of the class it names ([`Self::check_class_region`]).
+    /// training region of the class it names (the class region of the module docs).
     pub fn classify_f32(&self, x: &[f32]) -> Result<Inference, ModelError> {
         let mut mapped = [0.0f32; MAX_WIDTH];
         let n = self.map_inputs(x, &mut mapped)?;
@@ -420,10 +413,6 @@ pub fn diagnose_with(model: &QuantModel<'_>, features: &ReleaseFeatures) -> Verd
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::monitor::Monitor;
-    use crate::sensor::adc_from_bar;
-    use crate::units::{AdcCounts, BarG};
-    use crate::TwinParams;
 
     static CLASSES: [FaultClass; 2] = [FaultClass::Normal, FaultClass::AirLeak];
     static SCALE: [f32; 2] = [10.0, 10.0];
@@ -529,63 +518,5 @@ mod tests {
     fn compiled_model_is_consistent_with_the_features() {
         model_weights::MODEL.validate().unwrap();
         assert_eq!(model_weights::MODEL.n_inputs(), N_OURS);
-    }
-
-    fn release(adc: impl Fn(u32) -> AdcCounts, samples: u32) -> ReleaseFeatures {
-        let mut m = Monitor::new(&TwinParams::nominal()).unwrap();
-        let mut fx = ReleaseFeatures::new();
-        for i in 0..samples {
-            fx.update(&m.update(adc(i), true));
-        }
-        fx
-    }
-
-    #[test]
-    fn cannot_diagnose_sensor_faults_short_releases_and_implausible_features() {
-        use crate::sensor::SensorFault;
-        let fx = release(|_| AdcCounts(0), 3000);
-        assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::SensorFault(SensorFault::OpenCircuit)));
-        // 5 % of the samples shorted, the latest valid: still no diagnosis.
-        let fx =
-            release(|i| if i % 20 == 0 { AdcCounts(4095) } else { adc_from_bar(BarG(0.001 * f64::from(i))) }, 3001);
-        assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::SensorFault(SensorFault::ShortCircuit)));
-        let fx = release(|_| adc_from_bar(BarG(0.0)), 50);
-        assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::TooShort));
-        // A release whose plateau sags by 0.3 bar over 4 s (a supply that hunts or is cut):
-        // with the valve open and a steady supply the pressure never falls, so no class
-        // describes it.
-        let ramp = |i: u32| (0.004 * f64::from(i)).min(7.7);
-        let sag = |i: u32| {
-            let phase = (f64::from(i) - 3000.0) / 400.0;
-            if (0.0..1.0).contains(&phase) {
-                ramp(i) - 0.3 * libm::sin(core::f64::consts::PI * phase)
-            } else {
-                ramp(i)
-            }
-        };
-        let noise = |i: u32| if i % 2 == 0 { 0.01 } else { -0.01 };
-        let fx = release(|i| adc_from_bar(BarG(sag(i) + noise(i))), 4000);
-        assert!(fx.phase().max_drop() > 0.25, "{}", fx.phase().max_drop());
-        assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar));
-        let fx = release(|i| adc_from_bar(BarG(ramp(i) + noise(i))), 4000);
-        assert!(fx.phase().max_drop() < 0.02, "{}", fx.phase().max_drop());
-        let speed_up = crate::features::fill_speed_up(&fx.ours());
-        assert!(speed_up.is_some_and(|r| (0.95..1.05).contains(&r)), "{speed_up:?}");
-        // A fill that speeds up: 0.4 bar/s to 1 bar, then 0.8 bar/s (a supply still rising).
-        let rising = |i: u32| {
-            let t = f64::from(i) / 100.0;
-            if t < 2.5 {
-                0.4 * t
-            } else {
-                (1.0 + 0.8 * (t - 2.5)).min(7.7)
-            }
-        };
-        let fx = release(|i| adc_from_bar(BarG(rising(i) + noise(i))), 4000);
-        let speed_up = crate::features::fill_speed_up(&fx.ours());
-        assert!(speed_up.is_some_and(|r| r > 1.8), "{speed_up:?}");
-        assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar));
-        // A chamber that jumps to 9 bar and stays there is no brake of the training set.
-        let fx = release(|_| adc_from_bar(BarG(9.0)), 6000);
-        assert_eq!(diagnose(&fx), Verdict::CannotDiagnose(NoDiagnosis::Unfamiliar));
     }
 }

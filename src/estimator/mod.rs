@@ -39,7 +39,7 @@
 //!    upper pressure cutoff (2.3 … 4.55 bar abs, the choke limits of Ps = 4.36 … 8.6 bar abs),
 //!    each fed only the blocks below its cutoff. Once the plateau bounds Ps from below
 //!    (Ps ≥ P∞), the RLS with the highest cutoff ≤ 0.528 · Ps is the one whose data were all
-//!    choked ([`ReleaseEstimator::selected_window`]); before that, the highest cutoff (choked for
+//!    choked (the *selected* window, whose estimates are reported); before that, the highest cutoff (choked for
 //!    any supply ≥ 7.6 bar g, the regulator setting) is reported. The top cutoff 4.55 bar abs is
 //!    below the lowest breakaway of the fleet (F0 − 5 % + Fs ≈ 4.8 bar abs), so the piston is at
 //!    rest in every window. As a safety net for brakes outside the SPEC ranges, a one-sided
@@ -89,7 +89,7 @@
 //!
 //! - learnt regressions are queued and the queue advances by [`WINDOW_UPDATES_PER_SAMPLE`]
 //!   window update per sample, every sample (valve open or not), after the sample's own block
-//!   work. The reported window ([`ReleaseEstimator::selected_window`]) goes first, so it learns
+//!   work. The reported (selected) window goes first, so it learns
 //!   a block's regression in the block's own sample and the reported estimates are those of the
 //!   burst (except for ≤ 0.05 s after the fill's flush); the other windows follow, oldest
 //!   regression first, within the next block. Every window learns its regressions in the same
@@ -410,11 +410,6 @@ impl ReleaseEstimator {
         self.fills.get(i)
     }
 
-    /// The window whose estimates are reported (module docs).
-    pub fn selected_window(&self) -> usize {
-        self.selected
-    }
-
     fn fill(&self) -> &Rls<2> {
         // `selected` is always < FILL_WINDOWS; fall back to the last window defensively.
         self.fills.get(self.selected).unwrap_or(&self.fills[FILL_WINDOWS - 1])
@@ -433,6 +428,14 @@ impl ReleaseEstimator {
     /// The last error an update reported since the release started (`None`: all clean).
     pub fn last_error(&self) -> Option<EstimatorError> {
         self.last_error
+    }
+
+    /// The release command ended without a sample showing it (the input stopped): idle, the
+    /// last estimates kept for reporting, as after a falling edge; the next sample with the
+    /// command on starts a new release.
+    pub fn end_release(&mut self) {
+        self.in_release = false;
+        self.phase = Phase::Idle;
     }
 
     /// Processes one sample: `pressure` is the measured chamber pressure (`None` when the
@@ -601,7 +604,7 @@ impl ReleaseEstimator {
         }
     }
 
-    /// Does up to `budget` queued window updates. The reported window ([`Self::selected_window`])
+    /// Does up to `budget` queued window updates. The reported (selected) window
     /// goes first: it learns the oldest queued regression it has not learnt yet, so the
     /// estimates are those of the burst except right after a flush. Then the other windows, oldest
     /// regression first, windows in index order. Every window learns its regressions in order.

@@ -2,7 +2,7 @@
 //!
 //! Two extractors share one definition of the classifier's inputs:
 //!
-//! - [`ReleaseFeatures`] is what the monitor carries on the brake controller: the physics
+//! - [`ReleaseFeatures`] is what the pipeline carries on the brake controller: the physics
 //!   features of [`physics`] (filling slopes, level times, knees, plateau), the residual mean and
 //!   RMS (exact integer sums) and the online estimator's parameters, all in `f32` with
 //!   correctly rounded operations only (the Cortex-M4F's hardware FPU, the same bits on the
@@ -13,12 +13,15 @@
 //!   vector the firmware computes.
 //!
 //! Every feature is defined at every instant since the release command.
+//!
+//! Both read one [`ReleaseSample`] per sample: the measurement, the residual against the twin
+//! and the online estimates. This module does not know who computes them; on the controller it
+//! is the monitor, and [`crate::pipeline`] turns each monitor step into a [`ReleaseSample`].
 
 pub mod physics;
 pub mod stats;
 
 use crate::estimator::Estimates;
-use crate::monitor::MonitorStep;
 use crate::sensor::SensorFault;
 use crate::units::PressureQ24;
 pub use physics::{fill_speed_up, PhaseTracker, INDEX_FILL_RATIO, INDEX_P_MAX, N_PHYSICS, PHYSICS_NAMES};
@@ -60,7 +63,20 @@ const RESIDUAL_SHIFT: u32 = 8;
 /// One bar in the Q16 residual unit.
 const RESIDUAL_ONE_BAR: f32 = (PressureQ24::ONE_BAR >> RESIDUAL_SHIFT) as f32;
 
-/// The classifier's features of one release, as the monitor computes them on the target.
+/// One sample of a release as the features read it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReleaseSample {
+    /// Samples since the release command: 0 at the command, which starts a new release.
+    pub samples_since_release: u32,
+    /// Measured chamber pressure, or why the reading is not one.
+    pub measured: Result<PressureQ24, SensorFault>,
+    /// Measured − twin, Q7.24 bar (not read when `measured` is a sensor fault).
+    pub residual_q24: i32,
+    /// The online estimates after this sample.
+    pub estimates: Estimates,
+}
+
+/// The classifier's features of one release, as the pipeline computes them on the target.
 ///
 /// Per sample: one block/band update of the [`PhaseTracker`] in `f32` and two integer sums of
 /// the residual. Statistics that need a square root or a logarithm are evaluated only when
@@ -92,14 +108,13 @@ impl ReleaseFeatures {
         *self = Self::default();
     }
 
-    /// Adds one monitor step. A step with `samples_since_release == 0` starts a new release
-    /// (the monitor reports 0 at the release command and while no release is in progress).
-    pub fn update(&mut self, step: &MonitorStep) {
-        if step.samples_since_release == 0 {
+    /// Adds one sample. A sample with `samples_since_release == 0` starts a new release.
+    pub fn update(&mut self, sample: &ReleaseSample) {
+        if sample.samples_since_release == 0 {
             self.reset();
         }
-        self.push(step.samples_since_release, step.measured, step.residual_q24);
-        self.set_estimates(&step.estimates);
+        self.push(sample.samples_since_release, sample.measured, sample.residual_q24);
+        self.set_estimates(&sample.estimates);
     }
 
     /// Records the online estimator's current parameters (unknown or non-finite ones read 0).
@@ -227,19 +242,19 @@ impl FeatureExtractor {
         *self = Self::default();
     }
 
-    /// Adds one monitor step (see [`ReleaseFeatures::update`]).
-    pub fn update(&mut self, step: &MonitorStep) {
-        if step.samples_since_release == 0 {
+    /// Adds one sample (see [`ReleaseFeatures::update`]).
+    pub fn update(&mut self, sample: &ReleaseSample) {
+        if sample.samples_since_release == 0 {
             self.reset();
         }
-        self.release.update(step);
-        if let Ok(p) = step.measured {
+        self.release.update(sample);
+        if let Ok(p) = sample.measured {
             self.raw.push(p.to_bar_g().0);
-            self.residual.push(f64::from(step.residual_q24) * BAR_PER_Q24);
+            self.residual.push(f64::from(sample.residual_q24) * BAR_PER_Q24);
         }
     }
 
-    /// The classifier's features (what the monitor computes).
+    /// The classifier's features (what the controller computes).
     pub fn release(&self) -> &ReleaseFeatures {
         &self.release
     }
@@ -288,62 +303,5 @@ impl FeatureExtractor {
 impl AsRef<ReleaseFeatures> for FeatureExtractor {
     fn as_ref(&self) -> &ReleaseFeatures {
         &self.release
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::monitor::Monitor;
-    use crate::sensor::adc_from_bar;
-    use crate::units::{AdcCounts, BarG};
-    use crate::{Twin, TwinParams};
-
-    #[test]
-    fn nominal_release_through_the_monitor() {
-        let params = TwinParams::nominal();
-        let mut plant = Twin::new(&params).unwrap();
-        let mut monitor = Monitor::new(&params).unwrap();
-        let mut fx = FeatureExtractor::new();
-        let mut p = plant.state().p.0;
-        for _ in 0..6000 {
-            let step = monitor.update(adc_from_bar(PressureQ24(p).to_bar_g()), true);
-            fx.update(&step);
-            p = plant.update(true).pressure.0;
-        }
-        assert_eq!(fx.samples(), 6000);
-        let raw = fx.raw_stats();
-        assert!((raw[3] - 7.7).abs() < 0.01, "max {}", raw[3]);
-        let res = fx.residual_stats();
-        assert!(res[6] < 0.01, "residual RMS of the twin against itself {}", res[6]);
-        let (_, p_break) = fx.phase().breakaway().unwrap();
-        assert!((3.9..4.5).contains(&p_break), "breakaway {p_break}");
-        let (t_end, _) = fx.phase().end_stop().unwrap();
-        assert!((20.0..24.0).contains(&t_end), "end stop {t_end}");
-        let v = fx.ours();
-        assert!((v[12] - 0.79).abs() < 0.02, "choked filling slope {}", v[12]);
-        assert!((v[25] - 1.0).abs() < 0.02 && (v[26] - 1.0).abs() < 0.03, "{} {}", v[25], v[26]);
-        assert_eq!(OURS_NAMES[N_PHYSICS + 1], "residual_rms");
-        assert_eq!(OURS_NAMES[N_OURS - 1], "supply_bar_g");
-        let theta = fx.theta();
-        assert!((theta[2] - 7.7).abs() < 0.02, "estimated plateau {}", theta[2]);
-        assert_eq!(v[N_PHYSICS + 2..], theta);
-    }
-
-    #[test]
-    fn sensor_faults_are_counted_not_accumulated() {
-        let mut monitor = Monitor::new(&TwinParams::nominal()).unwrap();
-        let mut fx = FeatureExtractor::new();
-        for i in 0..100 {
-            let adc = if i >= 90 { AdcCounts(0) } else { adc_from_bar(BarG(0.01 * f64::from(i))) };
-            fx.update(&monitor.update(adc, true));
-        }
-        assert_eq!(fx.faulty_samples(), 10);
-        assert_eq!(fx.last_fault(), Some(SensorFault::OpenCircuit));
-        assert!((fx.raw_stats()[0] - 0.445).abs() < 0.003, "mean of the 90 valid samples");
-        // A new release command resets everything.
-        monitor.update(adc_from_bar(BarG(0.0)), false);
-        fx.update(&monitor.update(adc_from_bar(BarG(0.0)), true));
-        assert_eq!((fx.samples(), fx.faulty_samples()), (1, 0));
     }
 }

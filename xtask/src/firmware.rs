@@ -38,18 +38,24 @@ fn restore_default_build() -> Result<()> {
 }
 
 /// `cargo xtask fw-qemu`: `twin-check` must reproduce the host's golden checkpoints bit for bit
-/// (exit 0); its self-test with one golden value perturbed must fail (so a pass is a check that
-/// can fail); the `monitor` app must run the compiled-in release and send a fault report.
+/// and `classifier-check` the host's classifier golden vectors (`tests/golden/
+/// classifier_golden.txt`, the file `tests/classifier_golden.rs` checks) exactly (exit 0); their
+/// self-tests with one golden value perturbed must fail (so a pass is a check that can fail);
+/// the `monitor` app must run the compiled-in release and send a fault report.
 pub fn qemu() -> Result<()> {
     require_qemu()?;
-    step("firmware: twin-check in QEMU (expect exit 0)");
-    run(&mut alias("fw-run", &[]))?;
-    step("firmware: self-test with a corrupted golden value (expect a non-zero exit)");
-    let status = output(&mut alias("fw-run", &["--features", "selftest-corrupt-golden"]))?.status;
-    match status.code() {
-        Some(0) => return Err("the corrupted-golden self-test exited 0: the QEMU check cannot see a mismatch".into()),
-        Some(124) => return Err("the corrupted-golden self-test timed out instead of failing".into()),
-        _ => println!("self-test failed as it must ({status})"),
+    for (name, check) in [("twin-check", "fw-run"), ("classifier-check", "fw-classifier-check")] {
+        step(&format!("firmware: {name} in QEMU (expect exit 0)"));
+        run(&mut alias(check, &[]))?;
+        step(&format!("firmware: {name} self-test with a corrupted golden value (expect a non-zero exit)"));
+        let status = output(&mut alias(check, &["--features", "selftest-corrupt-golden"]))?.status;
+        match status.code() {
+            Some(0) => {
+                return Err(format!("the corrupted-golden self-test of {name} exited 0: it cannot see a mismatch"))
+            }
+            Some(124) => return Err(format!("the corrupted-golden self-test of {name} timed out instead of failing")),
+            _ => println!("self-test failed as it must ({status})"),
+        }
     }
     step("firmware: monitor application in QEMU on the compiled-in trace");
     let mut monitor = alias("fw-monitor", &[]);

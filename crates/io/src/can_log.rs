@@ -12,6 +12,7 @@ use crate::can_bus::FrameSink;
 use embedded_can::{ExtendedId, Frame, Id, StandardId};
 use pbm::can::{CanFrame, CanReporter};
 use pbm::monitor::Monitor;
+use pbm::pipeline::fault_report;
 use pbm::report::Verdict;
 use std::io::{BufRead, Write};
 
@@ -48,12 +49,12 @@ impl std::error::Error for LogError {}
 
 /// Formats a frame as `ID#DATA` (or `ID#R`, `ID#R<len>` for a remote frame).
 pub fn format_frame(frame: &CanFrame) -> String {
-    pbm::pipeline::candump::FrameText(frame).to_string()
+    pbm::can::candump::FrameText(frame).to_string()
 }
 
 /// One complete log line (without the newline).
 pub fn format_line(time_us: u64, iface: &str, frame: &CanFrame) -> String {
-    pbm::pipeline::candump::Line { time_us, iface, frame }.to_string()
+    pbm::can::candump::Line { time_us, iface, frame }.to_string()
 }
 
 fn parse_time(tok: &str) -> Result<u64, String> {
@@ -237,7 +238,7 @@ impl<S: FrameSink> CanRecorder<S> {
         release_active: bool,
     ) -> std::io::Result<usize> {
         let status = monitor.status();
-        let fault = verdict.map(|v| monitor.fault_report(v));
+        let fault = verdict.map(|v| fault_report(monitor, v));
         let out = self.reporter.step(&status, fault.as_ref(), release_active);
         for f in out.as_slice() {
             self.sink.send(time_us, f)?;

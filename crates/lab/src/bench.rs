@@ -5,6 +5,7 @@
 use crate::generate::{draw_fault, fleet, generate, simulate_plant, GenerateOptions, GENERATE_STEP_S};
 use crate::reference::REFERENCE_STEP_S;
 use anyhow::{Context, Result};
+use pbm::features::{ReleaseFeatures, ReleaseSample};
 use pbm::monitor::Monitor;
 use pbm::{AdcCounts, FaultClass, Twin, TwinParams};
 use std::fmt::Write as _;
@@ -90,13 +91,15 @@ pub fn twin_throughput(samples: u64) -> Result<Rate> {
     Ok(rate(done, start, cpu0))
 }
 
-/// Samples per second of the whole per-sample pipeline (`Monitor::update`), one thread, fed
+/// Samples per second of the per-sample monitor and release features (`Monitor::update`, then
+/// `ReleaseFeatures::update` during the release, as `Pipeline::step` runs them), one thread, fed
 /// with the ADC samples of a generated healthy release.
 pub fn pipeline_throughput(samples: u64) -> Result<Rate> {
     let fleet = fleet(1, 1);
     let job = crate::generate::TraceJob { class: FaultClass::Normal, test: false, k: 0, locomotive: 0 };
     let (adc, _) = crate::generate::run_job(&job, &fleet, 1, &Default::default())?;
     let mut monitor = Monitor::new(&TwinParams::nominal()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut features = ReleaseFeatures::new();
     let cpu0 = thread_cpu_seconds();
     let start = Instant::now();
     let mut done = 0;
@@ -104,7 +107,9 @@ pub fn pipeline_throughput(samples: u64) -> Result<Rate> {
         // Valve closed for one sample, then a release: the monitor restarts its twin.
         black_box(monitor.update(AdcCounts(410), false));
         for &c in &adc {
-            black_box(monitor.update(black_box(AdcCounts(c)), true));
+            let step = monitor.update(black_box(AdcCounts(c)), true);
+            features.update(&ReleaseSample::from(&step));
+            black_box(&features);
         }
         done += adc.len() as u64 + 1;
     }
@@ -223,7 +228,7 @@ pub fn run(a: &BenchOptions) -> Result<()> {
     println!("{line}");
     let _ = writeln!(md, "- {line}");
     let pipe = pipeline_throughput(a.pipeline_samples)?;
-    let line = format!("full pipeline (pbm::monitor::Monitor::update), 1 thread: {pipe}");
+    let line = format!("monitor and release features (Monitor::update + ReleaseFeatures::update), 1 thread: {pipe}");
     println!("{line}");
     let _ = writeln!(md, "- {line}");
 

@@ -350,14 +350,14 @@ pub fn canonical_classes(classes: &[FaultClass]) -> Result<Vec<FaultClass>> {
 /// The jobs of a data set in manifest order: class by class, training then test.
 pub fn plan(a: &GenerateOptions, classes: &[FaultClass]) -> Result<Vec<TraceJob>> {
     if a.locomotives == 0 {
-        bail!("a fleet needs at least 1 locomotive");
+        bail!("--locomotives: a fleet needs at least 1 locomotive");
     }
     let (train_locos, test_locos): (Vec<usize>, Vec<usize>) = match a.split {
         SplitMode::Shared => ((0..a.locomotives).collect(), (0..a.locomotives).collect()),
         SplitMode::HeldOut => {
             if a.test_locomotives == 0 || a.test_locomotives >= a.locomotives {
                 bail!(
-                    "held-out test locomotives must be at least 1 and fewer than the fleet (got {} of {})",
+                    "--test-locomotives: held-out test locomotives must be at least 1 and fewer than the fleet (got {} of {})",
                     a.test_locomotives,
                     a.locomotives
                 );

@@ -262,7 +262,7 @@ pub fn replay_samples(
         let (t_s, adc) = sample?;
         let index =
             u32::try_from(index).map_err(|_| ReplayError::Output(anyhow::anyhow!("trace longer than 2^32 samples")))?;
-        last_time_us = pbm::pipeline::candump::sample_time_us(0, index);
+        last_time_us = pbm::can::candump::sample_time_us(0, index);
         let step = pipeline.step(AdcCounts(adc), true);
         diagnosis = step.closed.or(diagnosis);
         keep(last_time_us, step.frames.as_slice());

@@ -23,7 +23,7 @@
 use crate::nn::{self, Activation, Mlp, TrainConfig, TrainLog};
 use anyhow::{bail, Context, Result};
 use pbm::classifier::{QuantLayer, QuantModel};
-use pbm::features::{FeatureExtractor, N_OURS, N_STATS, N_THETA};
+use pbm::features::{FeatureExtractor, ReleaseSample, N_OURS, N_STATS, N_THETA};
 use pbm::monitor::Monitor;
 use pbm::units::AdcCounts;
 use pbm::{FaultClass, TwinParams};
@@ -125,7 +125,7 @@ pub fn features_from_adc(row: &ManifestRow, class: FaultClass, adc: &[AdcCounts]
     let mut region_low = [f64::INFINITY; N_OURS];
     let mut region_high = [f64::NEG_INFINITY; N_OURS];
     for (i, &c) in adc.iter().enumerate() {
-        fx.update(&monitor.update(c, true));
+        fx.update(&ReleaseSample::from(&monitor.update(c, true)));
         let snapshot = snap_index.get(snapshots.len()) == Some(&i);
         if snapshot || (i >= first_region && (i - first_region) % REGION_EVERY_SAMPLES == 0) {
             let v = fx.ours();

@@ -14,7 +14,7 @@ use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
 use pbm::classifier::diagnose;
 use pbm::estimator::{EstimatorConfig, ReleaseEstimator};
-use pbm::features::ReleaseFeatures;
+use pbm::features::{ReleaseFeatures, ReleaseSample};
 use pbm::mechanism::{Extensions, Mechanism};
 use pbm::pipeline::Pipeline;
 use pbm::reservoir::{Reservoir, ReservoirParams};
@@ -137,7 +137,8 @@ fn main() -> ! {
         }
         frames += step.frames.as_slice().len();
         twin_only.add(measure(overhead, || twin.update(true)).0);
-        features_cost.add(measure(overhead, || features.update(&step.monitor)).0);
+        let sample = ReleaseSample::from(&step.monitor);
+        features_cost.add(measure(overhead, || features.update(&sample)).0);
         let measured = step.monitor.measured.ok();
         estimator_cost.add(measure(overhead, || estimator.update(measured, true)).0);
     }
@@ -146,7 +147,7 @@ fn main() -> ! {
         closing.add(close_instr);
         frames += outbox.as_slice().len();
     }
-    let (classify, verdict) = measure(overhead, || diagnose(pipeline.monitor().features()));
+    let (classify, verdict) = measure(overhead, || diagnose(pipeline.features()));
 
     // The reservoir model the MetroPT-3 audit named (bench/audit_metro.md: heat transfer and
     // transport delay on the fitted base), one 0.5 s substep per call, over four 90 s phases.

@@ -15,7 +15,7 @@ use core::fmt;
 
 use embedded_can::{Frame as _, Id};
 
-use crate::can::CanFrame;
+use super::CanFrame;
 
 /// Longest line [`Line`] writes, not counting the interface name: 23 (time: up to 14 digits of
 /// seconds for `u64::MAX` µs) + 1 + 1 + 8 (id) + 1 + 16 (data).
