@@ -106,13 +106,69 @@ fn a_symlink_leaving_the_data_set_is_refused() {
 }
 
 #[test]
-fn path_traversal_in_a_manifest_is_refused_with_its_line() {
+fn path_traversal_in_a_manifest_is_refused_with_its_line_and_the_rest_replays() {
     let tmp = tempfile::tempdir().unwrap();
-    let dir = data_set(tmp.path(), "good.csv,air_leak,y,test\n../good.csv,normal,x,test\n");
+    let dir = data_set(tmp.path(), "good.csv,air_leak,y,test\n../good.csv,normal,x,test\n/etc/passwd,normal,x,test\n");
     let out = host_sim(&[os("replay"), dir.as_os_str()]);
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert_eq!(out.status.code(), Some(3), "{stderr}");
     assert!(stderr.contains("manifest.csv:3: file `../good.csv` must be a relative path"), "{stderr}");
+    assert!(stderr.contains("manifest.csv:4: file `/etc/passwd` must be a relative path"), "{stderr}");
+    assert!(String::from_utf8_lossy(&out.stdout).contains("good.csv"));
+}
+
+#[test]
+fn outputs_never_overwrite_inputs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = data_set(tmp.path(), "good.csv,air_leak,y,test\n");
+    let before = std::fs::read(dir.join("good.csv")).unwrap();
+    let manifest = std::fs::read(dir.join("manifest.csv")).unwrap();
+    // Results into the data set itself: `DIR/good.csv` is the input trace.
+    let out = host_sim(&[os("replay"), dir.as_os_str(), os("--out"), dir.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("would overwrite the input"), "{stderr}");
+    // The CAN log over the manifest; one trace given directly with --out next to it.
+    let out = host_sim(&[os("replay"), dir.as_os_str(), os("--can-log"), dir.join("manifest.csv").as_os_str()]);
+    assert_eq!(out.status.code(), Some(1), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = host_sim(&[os("replay"), dir.join("good.csv").as_os_str(), os("--out"), dir.as_os_str()]);
+    assert_eq!(out.status.code(), Some(1), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(std::fs::read(dir.join("good.csv")).unwrap(), before, "the input trace is untouched");
+    assert_eq!(std::fs::read(dir.join("manifest.csv")).unwrap(), manifest, "the manifest is untouched");
+}
+
+#[test]
+fn endless_lines_and_special_files_are_refused_in_bounded_memory() {
+    let tmp = tempfile::tempdir().unwrap();
+    // 8 MB without a line break, listed in a data set: skipped, the rest replays.
+    let dir = data_set(tmp.path(), "endless.csv,normal,x,test\ngood.csv,air_leak,y,test\n");
+    std::fs::write(dir.join("endless.csv"), vec![b'7'; 8 << 20]).unwrap();
+    let out = host_sim(&[os("replay"), dir.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{stderr}");
+    assert!(stderr.contains("endless.csv:1: line longer than"), "{stderr}");
+    // A CAN log that is a directory or a device is refused, not decoded.
+    for path in [tmp.path().as_os_str(), os("/dev/zero")] {
+        let out = host_sim(&[os("can"), os("decode"), path]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{path:?}: {stderr}");
+        assert!(stderr.contains("refused"), "{stderr}");
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn a_fifo_model_file_is_refused_without_hanging() {
+    let tmp = tempfile::tempdir().unwrap();
+    let models = tmp.path().join("models");
+    std::fs::create_dir_all(&models).unwrap();
+    for f in ["paper_raw.mlp", "paper_residual.mlp", "paper_theta.mlp", "ours_f64.mlp", "ours_int8.txt"] {
+        assert!(Command::new("mkfifo").arg(models.join(f)).status().unwrap().success());
+    }
+    let out = host_sim(&[os("evaluate"), small().as_os_str(), os("--models"), models.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("not a regular file"), "{stderr}");
 }
 
 #[test]

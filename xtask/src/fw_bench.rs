@@ -118,8 +118,20 @@ fn component(name: &str) -> &'static str {
     } else if name.starts_with("libm::") {
         "libm (software sqrtf of the estimator and features)"
     } else if any(&[
-        "embassy", "_embassy", "<embassy", "monitor::", "pbm_firmware", "cortex_m", "__INTERRUPTS", "__EXCEPTIONS",
-        "Reset", "SysTick", "DefaultHandler", "HardFault", "__pre_init", "main",
+        "embassy",
+        "_embassy",
+        "<embassy",
+        "monitor::",
+        "pbm_firmware",
+        "cortex_m",
+        "__INTERRUPTS",
+        "__EXCEPTIONS",
+        "Reset",
+        "SysTick",
+        "DefaultHandler",
+        "HardFault",
+        "__pre_init",
+        "main",
     ]) {
         "runtime: embassy executor + sync, tasks, vectors, console"
     } else if name.contains("compiler_builtins") || any(&["__aeabi", "__udiv", "__divmod", "__umod", "mem"]) {

@@ -138,7 +138,10 @@ fn svg_documents_are_inlined_as_their_svg_element() {
 #[test]
 fn page_check_refuses_code_references_in_the_text() {
     use pbm_report::report_html::code_reference;
-    assert_eq!(code_reference("<p>replayed through pbm::pipeline::Pipeline</p>"), Some("pbm::pipeline::Pipeline".into()));
+    assert_eq!(
+        code_reference("<p>replayed through pbm::pipeline::Pipeline</p>"),
+        Some("pbm::pipeline::Pipeline".into())
+    );
     assert_eq!(code_reference("<p>see src/twin.rs.</p>"), Some("src/twin.rs".into()));
     assert_eq!(code_reference("<p>aim (issue 6)</p>").as_deref(), Some("issue 6"));
     assert_eq!(code_reference("<p>(SPEC §6)</p>").as_deref(), Some("§6"));

@@ -148,6 +148,29 @@ pub fn parse_line(line: &str) -> Result<Option<LogRecord>, String> {
     Ok(Some(LogRecord { time_us: parse_time(time)?, iface: iface.to_owned(), frame: parse_frame(frame)? }))
 }
 
+/// Longest candump line read, bytes (a frame line is under 60).
+pub const MAX_LOG_LINE_BYTES: usize = 4096;
+
+/// Reads and drops input up to and including the next `\n`.
+fn skip_line<R: BufRead>(reader: &mut R) -> std::io::Result<()> {
+    loop {
+        let chunk = reader.fill_buf()?;
+        if chunk.is_empty() {
+            return Ok(());
+        }
+        match chunk.iter().position(|&b| b == b'\n') {
+            Some(i) => {
+                reader.consume(i + 1);
+                return Ok(());
+            }
+            None => {
+                let n = chunk.len();
+                reader.consume(n);
+            }
+        }
+    }
+}
+
 /// Reads a candump log line by line. Each item is a frame or the error of one line; reading
 /// goes on after a bad line. An I/O error ends the iteration with that error.
 pub fn read_log<R: BufRead>(reader: R) -> impl Iterator<Item = Result<LogRecord, LogError>> {
@@ -160,8 +183,20 @@ pub fn read_log<R: BufRead>(reader: R) -> impl Iterator<Item = Result<LogRecord,
             return None;
         }
         buf.clear();
-        match reader.read_until(b'\n', &mut buf) {
+        match std::io::Read::take(&mut reader, MAX_LOG_LINE_BYTES as u64 + 1).read_until(b'\n', &mut buf) {
             Ok(0) => return None,
+            Ok(_) if buf.len() > MAX_LOG_LINE_BYTES && !buf.ends_with(b"\n") => {
+                line_no += 1;
+                // Bounded memory whatever the input: the rest of the line is read and dropped.
+                if let Err(e) = skip_line(&mut reader) {
+                    done = true;
+                    return Some(Err(LogError { line: line_no, reason: format!("read error: {e}") }));
+                }
+                return Some(Err(LogError {
+                    line: line_no,
+                    reason: format!("line longer than {MAX_LOG_LINE_BYTES} bytes: not a candump line"),
+                }));
+            }
             Ok(_) => {
                 line_no += 1;
                 let text = String::from_utf8_lossy(&buf);

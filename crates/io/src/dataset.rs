@@ -42,8 +42,21 @@ pub fn read_manifest(dir: &Path) -> Result<Vec<ManifestRow>, FileError> {
     parse_manifest(&name, BufReader::new(file))
 }
 
-/// Parses manifest text; `name` is used in errors.
+/// Parses manifest text; `name` is used in errors. Strict: any bad row is an error.
 pub fn parse_manifest(name: &str, text: impl std::io::BufRead) -> Result<Vec<ManifestRow>, FileError> {
+    parse_manifest_lines(name, text)?.into_iter().map(|(_, r)| r).collect()
+}
+
+/// A manifest row, or why it is refused.
+type CheckedRow = Result<ManifestRow, FileError>;
+
+/// Parses manifest text into rows with their lines: the file's structure (header, columns,
+/// quoting) must be right, and a row whose content is wrong (a path leaving the data set, an
+/// empty field) comes back as that row's error.
+fn parse_manifest_lines(
+    name: &str,
+    text: impl std::io::BufRead,
+) -> Result<Vec<(usize, CheckedRow)>, FileError> {
     let rows: Vec<(usize, ManifestRow)> = read_rows_checked(name, text, |header| {
         if header.iter().eq(MANIFEST_COLUMNS) {
             Ok(())
@@ -51,15 +64,19 @@ pub fn parse_manifest(name: &str, text: impl std::io::BufRead) -> Result<Vec<Man
             Err(format!("header must be `{}`", MANIFEST_COLUMNS.join(",")))
         }
     })?;
-    rows.into_iter()
+    Ok(rows
+        .into_iter()
         .map(|(line, r)| {
-            check_relative(&r.file).map_err(|m| FileError::new(name, line, m))?;
-            if r.label.is_empty() || r.locomotive.is_empty() || r.split.is_empty() {
-                return Err(FileError::new(name, line, "empty label, locomotive or split"));
-            }
-            Ok(r)
+            let checked = check_relative(&r.file).map_err(|m| FileError::new(name, line, m)).and_then(|()| {
+                if r.label.is_empty() || r.locomotive.is_empty() || r.split.is_empty() {
+                    Err(FileError::new(name, line, "empty label, locomotive or split"))
+                } else {
+                    Ok(r)
+                }
+            });
+            (line, checked)
         })
-        .collect()
+        .collect())
 }
 
 /// Writes `rows` as a manifest (fields quoted where needed).
@@ -78,17 +95,49 @@ pub struct Dataset {
     dir: PathBuf,
     root: PathBuf,
     rows: Vec<ManifestRow>,
+    /// Manifest line of each row.
+    lines: Vec<usize>,
+    /// Rows refused when the manifest was read, with why.
+    refused: Vec<FileError>,
 }
 
 impl Dataset {
-    /// Reads the manifest of the data set in `dir`.
+    /// Reads the manifest of the data set in `dir`. A manifest that cannot be read as a whole
+    /// (missing, bad header, wrong column count, an unclosed quote) is an error; a row whose
+    /// path or fields are wrong is refused alone ([`Self::refused`]).
     pub fn open(dir: &Path) -> Result<Self, FileError> {
         let root =
             std::fs::canonicalize(dir).map_err(|e| FileError::new(dir.display(), 0, format!("cannot read: {e}")))?;
         if !root.is_dir() {
             return Err(FileError::new(dir.display(), 0, "not a directory"));
         }
-        Ok(Self { dir: dir.to_owned(), rows: read_manifest(dir)?, root })
+        let path = dir.join(MANIFEST);
+        let name = path.display().to_string();
+        ensure_inside(&root, MANIFEST, &path)?;
+        let file = crate::files::open_regular(&path)?;
+        let (mut rows, mut lines, mut refused) = (Vec::new(), Vec::new(), Vec::new());
+        for (line, row) in parse_manifest_lines(&name, BufReader::new(file))? {
+            match row {
+                Ok(r) => {
+                    rows.push(r);
+                    lines.push(line);
+                }
+                Err(e) => refused.push(e),
+            }
+        }
+        Ok(Self { dir: dir.to_owned(), rows, lines, refused, root })
+    }
+
+    /// Manifest rows refused when it was read (each with its manifest line).
+    pub fn refused(&self) -> &[FileError] {
+        &self.refused
+    }
+
+    /// The path of a side file of the data set (e.g. [`TRUTH`]), refused if it leaves it.
+    pub fn side_file(&self, name: &str) -> Result<PathBuf, FileError> {
+        let path = self.dir.join(name);
+        ensure_inside(&self.root, name, &path)?;
+        Ok(path)
     }
 
     /// The directory as given.
@@ -107,10 +156,18 @@ impl Dataset {
     }
 
     /// The path of a row's trace, refused if it leaves the data set (symbolic links resolved)
-    /// or does not exist.
+    /// or does not exist; the error names the manifest line of the row.
     pub fn trace_path(&self, row: &ManifestRow) -> Result<PathBuf, FileError> {
         let path = self.dir.join(&row.file);
-        ensure_inside(&self.root, &row.file, &path)?;
+        ensure_inside(&self.root, &row.file, &path).map_err(|e| {
+            let line = self.rows.iter().position(|r| std::ptr::eq(r, row)).and_then(|i| self.lines.get(i).copied());
+            match line {
+                Some(line) => {
+                    FileError::new(self.dir.join(MANIFEST).display(), line, format!("{}: {}", row.file, e.message))
+                }
+                None => e,
+            }
+        })?;
         Ok(path)
     }
 
@@ -120,10 +177,10 @@ impl Dataset {
         TraceReader::open(&path).map_err(FileError::from)
     }
 
-    /// Reads a row's whole trace.
+    /// Reads a row's whole trace, checking its 100 Hz clock ([`crate::trace::read_release_trace`]).
     pub fn read_trace(&self, row: &ManifestRow) -> Result<Trace, FileError> {
         let path = self.trace_path(row)?;
-        crate::trace::read_trace(&path).map_err(FileError::from)
+        crate::trace::read_release_trace(&path).map_err(FileError::from)
     }
 }
 
@@ -175,6 +232,9 @@ pub fn select(path: &Path, selection: &Selection) -> anyhow::Result<(Vec<TraceIt
         anyhow::bail!("{} is a directory without {MANIFEST}", path.display());
     }
     let data = Dataset::open(path)?;
+    for e in data.refused() {
+        skipped.push(e.clone());
+    }
     let mut per_label = std::collections::HashMap::<&str, usize>::new();
     let mut items = Vec::new();
     for row in data.rows() {

@@ -50,6 +50,10 @@ impl Skipped {
     pub fn none() -> Self {
         Self::default()
     }
+    /// The given errors as skipped inputs.
+    pub fn of(errors: &[FileError]) -> Self {
+        Self(errors.to_vec())
+    }
     /// Records a skipped input.
     pub fn push(&mut self, e: impl Into<FileError>) {
         self.0.push(e.into());

@@ -48,3 +48,42 @@ pub fn ensure_inside(root: &Path, name: &str, shown: &Path) -> Result<(), FileEr
     }
     Ok(())
 }
+
+/// Reads a whole text file: a regular file (see [`open_regular`]) of at most `max_bytes`, in
+/// UTF-8.
+pub fn read_text(path: &Path, max_bytes: u64) -> Result<String, FileError> {
+    use std::io::Read;
+    let shown = path.display();
+    let file = open_regular(path)?;
+    let mut text = String::new();
+    file.take(max_bytes + 1)
+        .read_to_string(&mut text)
+        .map_err(|e| FileError::new(&shown, 0, format!("cannot read: {e}")))?;
+    if text.len() as u64 > max_bytes {
+        return Err(FileError::new(&shown, 0, format!("larger than the {max_bytes}-byte limit: refused")));
+    }
+    Ok(text)
+}
+
+/// Refuses to run when an output file would overwrite one of the run's inputs (for example
+/// `replay DATA --out DATA`, or a CAN log written over the manifest): each existing output is
+/// compared, symbolic links resolved, with every input. Checked before anything is written, so
+/// a refused run changes no file. The error names both.
+pub fn refuse_overwriting_inputs<'a>(
+    outputs: impl IntoIterator<Item = &'a Path>,
+    inputs: impl IntoIterator<Item = &'a Path>,
+) -> Result<(), String> {
+    let inputs: Vec<(&Path, std::path::PathBuf)> =
+        inputs.into_iter().filter_map(|p| std::fs::canonicalize(p).ok().map(|c| (p, c))).collect();
+    for out in outputs {
+        let Ok(real) = std::fs::canonicalize(out) else { continue };
+        if let Some((input, _)) = inputs.iter().find(|(_, c)| *c == real) {
+            return Err(format!(
+                "output {} would overwrite the input {}: choose an output outside the inputs",
+                out.display(),
+                input.display()
+            ));
+        }
+    }
+    Ok(())
+}

@@ -25,13 +25,25 @@ pub enum LineError {
     Io(std::io::ErrorKind),
     /// A comment line is not UTF-8.
     NotUtf8,
+    /// A line longer than [`MAX_LINE_BYTES`] (no line of the project's formats comes close; a
+    /// file without line breaks would otherwise be read whole into memory).
+    TooLong,
+    /// A quote opened and not closed on its line (a field cannot span lines).
+    UnclosedQuote,
 }
+
+/// Longest line read, bytes.
+pub const MAX_LINE_BYTES: usize = 64 * 1024;
 
 impl std::fmt::Display for LineError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
             Self::Io(k) => write!(f, "cannot read: {k}"),
             Self::NotUtf8 => f.write_str("not valid UTF-8"),
+            Self::TooLong => write!(f, "line longer than {MAX_LINE_BYTES} bytes: not a CSV line"),
+            Self::UnclosedQuote => {
+                f.write_str("a quoted field is not closed on its line (a field cannot hold a line break)")
+            }
         }
     }
 }
@@ -81,12 +93,15 @@ impl<R: BufRead> CsvLines<R> {
     pub fn next_line(&mut self) -> Option<Result<Line, (usize, LineError)>> {
         loop {
             self.buf.clear();
-            match self.input.read_until(b'\n', &mut self.buf) {
+            match std::io::Read::take(&mut self.input, MAX_LINE_BYTES as u64 + 1).read_until(b'\n', &mut self.buf) {
                 Ok(0) => return None,
                 Ok(_) => {}
                 Err(e) => return Some(Err((self.line + 1, LineError::Io(e.kind())))),
             }
             self.line += 1;
+            if self.buf.len() > MAX_LINE_BYTES && !self.buf.ends_with(b"\n") {
+                return Some(Err((self.line, LineError::TooLong)));
+            }
             let bom = if self.line == 1 && self.buf.starts_with("\u{feff}".as_bytes()) { 3 } else { 0 };
             let text = self.buf[bom..].trim_ascii();
             if text.is_empty() {
@@ -100,6 +115,9 @@ impl<R: BufRead> CsvLines<R> {
                     Ok(_) => Ok(Line::Comment(self.line)),
                     Err(_) => Err((self.line, LineError::NotUtf8)),
                 });
+            }
+            if text.iter().filter(|&&b| b == b'"').count() % 2 == 1 {
+                return Some(Err((self.line, LineError::UnclosedQuote)));
             }
             parse_fields(text, &mut self.out, &mut self.ends, &mut self.record);
             return Some(Ok(Line::Record(self.line)));
@@ -139,6 +157,7 @@ fn parse_fields(mut input: &[u8], out: &mut Vec<u8>, ends: &mut Vec<usize>, reco
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::io::Read;
 
     fn lines(text: &str) -> Vec<(usize, Vec<String>)> {
         let mut r = CsvLines::new(text.as_bytes());
@@ -167,7 +186,19 @@ mod tests {
                 (7, vec!["last".into()]),
             ]
         );
-        assert_eq!(lines("\"open,1\nb\rc"), vec![(1, vec!["open,1".into()]), (2, vec!["b\rc".into()])]);
+        assert_eq!(lines("b\rc"), vec![(1, vec!["b\rc".into()])]);
+    }
+
+    #[test]
+    fn an_open_quote_and_an_endless_line_are_errors() {
+        let mut r = CsvLines::new("a,b\n\"open,1\nnext".as_bytes());
+        assert!(matches!(r.next_line(), Some(Ok(Line::Record(1)))));
+        assert_eq!(r.next_line(), Some(Err((2, LineError::UnclosedQuote))));
+        // A file without line breaks is not read whole: the line is refused at the cap.
+        let endless = std::io::repeat(b'7').take(10 * MAX_LINE_BYTES as u64);
+        let mut r = CsvLines::new(std::io::BufReader::new(endless));
+        assert_eq!(r.next_line(), Some(Err((1, LineError::TooLong))));
+        assert!(r.buf.capacity() <= 2 * MAX_LINE_BYTES + 1024);
     }
 
     #[test]

@@ -10,6 +10,10 @@ use chrono::NaiveDateTime;
 use serde::Deserialize;
 use std::path::Path;
 
+/// Longest interval between two rows of one record, s (the recorder samples about every 10 s;
+/// a longer gap is an outage, across which the reservoir model cannot be integrated).
+pub const MAX_GAP_S: f64 = 600.0;
+
 /// The extract of the repository (CC BY 4.0, see `tests/data/metropt3/README.md`), relative to
 /// the repository root.
 pub const EXTRACT: &str = "tests/data/metropt3/metropt3_head.csv";
@@ -70,7 +74,15 @@ pub fn read_metro(path: &Path) -> Result<Vec<MetroRow>, FileError> {
         let t_s = (t - t0).num_microseconds().map_or(f64::NAN, |us| us as f64 * 1e-6);
         if let Some(prev) = rows.last() {
             if t_s.partial_cmp(&prev.t_s) != Some(std::cmp::Ordering::Greater) {
-                return Err(err(format!("time is not increasing ({} after {} s)", r.timestamp, prev.t_s)));
+                return Err(err(format!("time is not increasing ({} is not after the previous row)", r.timestamp)));
+            }
+            if t_s - prev.t_s > MAX_GAP_S {
+                return Err(err(format!(
+                    "a gap of {:.0} s before {}: the audit needs one continuous record (the extract is sampled \
+                     about every 10 s); cut the file at the gap",
+                    t_s - prev.t_s,
+                    r.timestamp
+                )));
             }
         }
         rows.push(MetroRow { t_s, tp3_bar: r.tp3, loaded: r.comp < 0.5, oil_c: r.oil_temperature });
@@ -114,6 +126,15 @@ mod tests {
         assert!((r[24].t_s - 240.0).abs() < 1e-9);
         let (_d, p) = write(&rows("2021-12-31 23:59:50", 25));
         assert!((read_metro(&p).unwrap()[1].t_s - 10.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn an_outage_in_the_record_is_an_error_naming_its_line() {
+        let text = rows("2020-02-01 00:00:00", 25).replace("12,2020-02-01 00:02:00", "12,2020-02-03 00:02:00");
+        let (_d, p) = write(&text);
+        let e = read_metro(&p).unwrap_err();
+        assert_eq!(e.line, 14, "{e}");
+        assert!(e.message.contains("gap of 172810 s"), "{e}");
     }
 
     #[test]

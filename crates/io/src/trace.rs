@@ -136,6 +136,8 @@ pub enum TraceErrorKind {
     Empty,
     /// The bytes are not UTF-8.
     NotUtf8,
+    /// A line is not a CSV line (too long, or a quote left open).
+    BadLine(LineError),
     /// The first non-comment line is data, not a header.
     MissingHeader,
     /// The header does not start with `t_s,p_bar` or `t_s,adc`.
@@ -199,6 +201,7 @@ impl fmt::Display for TraceErrorKind {
             Self::TooLarge { limit } => write!(f, "file larger than the {limit}-byte limit for a trace"),
             Self::Empty => f.write_str("empty file: expected a `t_s,p_bar` or `t_s,adc` header and samples"),
             Self::NotUtf8 => f.write_str("not valid UTF-8"),
+            Self::BadLine(e) => write!(f, "{e}"),
             Self::MissingHeader => {
                 f.write_str("missing header: expected `t_s,p_bar` or `t_s,adc` before the first row")
             }
@@ -427,6 +430,7 @@ fn line_error(e: LineError) -> TraceErrorKind {
     match e {
         LineError::Io(k) => TraceErrorKind::Io(k),
         LineError::NotUtf8 => TraceErrorKind::NotUtf8,
+        e => TraceErrorKind::BadLine(e),
     }
 }
 
@@ -469,6 +473,17 @@ pub fn read_trace(path: &Path) -> Result<Trace, TraceError> {
         }
     }
     collect(TraceReader::open(path)?)
+}
+
+/// Tolerance on the 10 ms sample interval of a release trace, s.
+pub const PERIOD_TOLERANCE_S: f64 = 1e-3;
+
+/// Reads a release trace for the monitor's tools: [`read_trace`] plus the fixed 100 Hz clock of
+/// the ADC (SPEC §5), checked sample by sample (the error names the first offending line).
+pub fn read_release_trace(path: &Path) -> Result<Trace, TraceError> {
+    let trace = read_trace(path)?;
+    trace.check_sample_period(pbm::twin::SAMPLE_PERIOD_S, PERIOD_TOLERANCE_S)?;
+    Ok(trace)
 }
 
 /// Parses trace bytes; `source` names the file in errors.

@@ -83,12 +83,36 @@ fn shifted_sets() -> Result<()> {
             }),
             false,
         ),
-        ("twice the noise", with(base(611, 40), &|o| o.conditions = cond(0.02, spec.spread, spec.regulator_bar_g)), false),
-        ("spread 8 %", with(base(612, 40), &|o| o.conditions = cond(spec.noise_bar, 0.08, spec.regulator_bar_g)), false),
-        ("spread 10 %", with(base(618, 40), &|o| o.conditions = cond(spec.noise_bar, 0.10, spec.regulator_bar_g)), false),
-        ("regulator 7.7 ± 0.1 bar", with(base(613, 40), &|o| o.conditions = cond(spec.noise_bar, spec.spread, (7.6, 7.8))), false),
-        ("transport delay 0.1 s", with(base(614, 40), &|o| o.effects = Extensions::NONE.with(Mechanism::TransportDelay, 0.1)), false),
-        ("transport delay 0.3 s", with(base(615, 40), &|o| o.effects = Extensions::NONE.with(Mechanism::TransportDelay, 0.3)), false),
+        (
+            "twice the noise",
+            with(base(611, 40), &|o| o.conditions = cond(0.02, spec.spread, spec.regulator_bar_g)),
+            false,
+        ),
+        (
+            "spread 8 %",
+            with(base(612, 40), &|o| o.conditions = cond(spec.noise_bar, 0.08, spec.regulator_bar_g)),
+            false,
+        ),
+        (
+            "spread 10 %",
+            with(base(618, 40), &|o| o.conditions = cond(spec.noise_bar, 0.10, spec.regulator_bar_g)),
+            false,
+        ),
+        (
+            "regulator 7.7 ± 0.1 bar",
+            with(base(613, 40), &|o| o.conditions = cond(spec.noise_bar, spec.spread, (7.6, 7.8))),
+            false,
+        ),
+        (
+            "transport delay 0.1 s",
+            with(base(614, 40), &|o| o.effects = Extensions::NONE.with(Mechanism::TransportDelay, 0.1)),
+            false,
+        ),
+        (
+            "transport delay 0.3 s",
+            with(base(615, 40), &|o| o.effects = Extensions::NONE.with(Mechanism::TransportDelay, 0.3)),
+            false,
+        ),
         (
             "all four shifts",
             with(base(616, 40), &|o| {
@@ -97,7 +121,11 @@ fn shifted_sets() -> Result<()> {
             }),
             false,
         ),
-        ("three times the noise", with(base(617, 40), &|o| o.conditions = cond(0.03, spec.spread, spec.regulator_bar_g)), false),
+        (
+            "three times the noise",
+            with(base(617, 40), &|o| o.conditions = cond(0.03, spec.spread, spec.regulator_bar_g)),
+            false,
+        ),
         ("orifice missing", with(base(701, 30), &|o| o.classes = classes(&[FaultClass::OrificeMissing])), true),
         (
             "supply 2.5-3.2 bar",

@@ -223,7 +223,7 @@ pub const MIN_SAMPLES: usize = 200;
 pub fn load_dataset(dir: &Path) -> Result<(AuditData, Skipped)> {
     let data = Dataset::open(dir)?;
     let mut traces = Vec::new();
-    let mut skipped = Skipped::none();
+    let mut skipped = Skipped::of(data.refused());
     for row in data.rows() {
         match audit_trace(&data, row) {
             Ok((config, p)) => traces.push((row.file.clone(), config, p)),

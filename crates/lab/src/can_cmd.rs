@@ -375,7 +375,7 @@ fn run_decode(a: &DecodeOptions) -> Result<()> {
         match a.file.as_deref() {
             Some(p) if p.as_os_str() == "-" => decode_log(std::io::stdin().lock(), &mut display)?,
             Some(p) => {
-                let f = std::fs::File::open(p).with_context(|| format!("cannot open {}", p.display()))?;
+                let f = pbm_io::files::open_regular(p)?;
                 decode_log(std::io::BufReader::new(f), &mut display)?;
             }
             None => bail!("give a candump log FILE (or - for stdin) or --can-iface NAME"),
@@ -414,7 +414,7 @@ pub fn send(a: &SendOptions) -> Result<()> {
     let reader: Box<dyn BufRead> = if a.file.as_os_str() == "-" {
         Box::new(std::io::BufReader::new(std::io::stdin()))
     } else {
-        let f = std::fs::File::open(&a.file).with_context(|| format!("cannot open {}", a.file.display()))?;
+        let f = pbm_io::files::open_regular(&a.file)?;
         Box::new(std::io::BufReader::new(f))
     };
     let mut sink = open_sink(&a.can_iface)?;

@@ -135,7 +135,10 @@ impl Truth {
 /// Reads `truth.csv` (columns by name: file, label, supply_bar_g, orifice_mm, leak_mm, v0_l, cf;
 /// others ignored).
 pub fn read_truth(dir: &Path) -> Result<HashMap<String, Truth>, FileError> {
-    let rows: Vec<(usize, Truth)> = read_rows(&dir.join(TRUTH))?;
+    let root = std::fs::canonicalize(dir).map_err(|e| FileError::new(dir.display(), 0, format!("cannot read: {e}")))?;
+    let path = dir.join(TRUTH);
+    pbm_io::files::ensure_inside(&root, TRUTH, &path)?;
+    let rows: Vec<(usize, Truth)> = read_rows(&path)?;
     Ok(rows.into_iter().map(|(_, t)| (t.file.clone(), t)).collect())
 }
 
@@ -270,7 +273,7 @@ fn load_dataset(dir: &Path, split: &str, per_class: usize) -> Result<(Vec<TruthA
             Ok((t.clone(), trace.adc_counts()))
         })
         .collect();
-    let mut skipped = Skipped::none();
+    let mut skipped = Skipped::of(data.refused());
     let cases = loaded.into_iter().filter_map(|r| r.map_err(|e| skipped.push(e)).ok()).collect();
     Ok((cases, skipped))
 }

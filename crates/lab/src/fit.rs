@@ -221,7 +221,7 @@ pub fn run(input: &Path, a: &FitOptions) -> Result<Skipped> {
     let results: Vec<Result<FitResult, FileError>> = items
         .par_iter()
         .map(|item| {
-            let trace = pbm_io::trace::read_trace(&item.path)?;
+            let trace = pbm_io::trace::read_release_trace(&item.path)?;
             let measured = measured_of(&trace);
             fit_trace(&measured, &base, a.params, a.max_iters)
                 .map_err(|e| FileError::new(&item.name, 0, format!("fit: {e:#}")))

@@ -89,7 +89,7 @@ pub const SUMMARY_COLUMNS: [&str; 13] = [
 ];
 
 /// Tolerance on the 10 ms sample interval, s.
-pub const PERIOD_TOLERANCE_S: f64 = 1e-3;
+pub use pbm_io::trace::PERIOD_TOLERANCE_S;
 
 /// Gap between two traces in a replay's CAN log, µs.
 pub const TRACE_GAP_US: u64 = 10_000_000;
@@ -465,8 +465,9 @@ pub fn replay_all(items: &[TraceItem], opts: &ReplayOptions) -> Result<Vec<Resul
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
-    let pool =
-        rayon::ThreadPoolBuilder::new().num_threads(opts.threads).build().context("cannot start worker threads")?;
+    // No more threads than traces (0 = one per core).
+    let threads = if opts.threads == 0 { 0 } else { opts.threads.min(items.len().max(1)) };
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start worker threads")?;
     let results: Vec<Result<Result<TraceReplay, FileError>>> = pool.install(|| {
         items
             .par_iter()
@@ -598,6 +599,24 @@ pub fn print_table(items: &[TraceItem], results: &[Result<TraceReplay, FileError
     }
 }
 
+/// Refuses a run whose outputs (results, plots, summary, CAN log) would overwrite one of its
+/// inputs (a trace, the manifest, the truth file).
+fn guard_inputs(path: &Path, items: &[TraceItem], opts: &ReplayOptions) -> Result<()> {
+    let mut outputs: Vec<PathBuf> = Vec::new();
+    for item in items {
+        outputs.extend(opts.out.as_deref().map(|d| output_path(d, &item.name, "csv")));
+        outputs.extend(opts.plot.as_deref().map(|d| output_path(d, &item.name, "svg")));
+    }
+    outputs.extend(opts.out.as_deref().map(|d| d.join("summary.csv")));
+    outputs.extend(opts.can_log.clone());
+    let mut inputs: Vec<PathBuf> = items.iter().map(|i| i.path.clone()).collect();
+    if path.is_dir() {
+        inputs.extend([path.join(pbm_io::dataset::MANIFEST), path.join(pbm_io::dataset::TRUTH)]);
+    }
+    pbm_io::files::refuse_overwriting_inputs(outputs.iter().map(PathBuf::as_path), inputs.iter().map(PathBuf::as_path))
+        .map_err(anyhow::Error::msg)
+}
+
 /// A replay run: every trace under `path`, the table on stdout, the outputs of `opts`. Returns
 /// what was skipped (bad inputs); fails only when nothing could be replayed or an output could
 /// not be written.
@@ -610,6 +629,7 @@ pub fn run(path: &Path, opts: &ReplayOptions) -> Result<Skipped> {
             if skipped.is_empty() { String::new() } else { format!("\n{skipped}") }
         );
     }
+    guard_inputs(path, &items, opts)?;
     let results = replay_all(&items, opts)?;
     print_table(&items, &results);
     if let Some(dir) = &opts.out {

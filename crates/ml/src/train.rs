@@ -209,7 +209,7 @@ pub fn dataset_features(dir: &Path, split: Option<&str>) -> Result<(Vec<TraceFea
         bail!("{}: no traces with split {:?}", dir.display(), split.unwrap_or("any"));
     }
     let results: Vec<Result<TraceFeatures, FileError>> = rows.par_iter().map(|r| trace_features(&data, r)).collect();
-    let mut skipped = Skipped::none();
+    let mut skipped = Skipped::of(data.refused());
     let features: Vec<TraceFeatures> =
         results.into_iter().filter_map(|r| r.map_err(|e| skipped.push(e)).ok()).collect();
     if features.is_empty() {
@@ -329,9 +329,25 @@ pub fn write_mlp(path: &Path, net: &Mlp, classes: &[FaultClass]) -> Result<()> {
     std::fs::write(path, s).with_context(|| format!("cannot write {}", path.display()))
 }
 
+/// Largest model file read, bytes (the paper's networks are a few hundred kB as text).
+pub const MAX_MODEL_BYTES: u64 = 64 << 20;
+
+/// Refuses a run whose model, Rust or golden files would overwrite a file of the data set.
+fn guard_inputs(a: &TrainOptions) -> Result<()> {
+    let data = pbm_io::dataset::Dataset::open(&a.dataset)?;
+    let mut inputs: Vec<PathBuf> = data.rows().iter().filter_map(|r| data.trace_path(r).ok()).collect();
+    inputs.extend([a.dataset.join(pbm_io::dataset::MANIFEST), a.dataset.join(pbm_io::dataset::TRUTH)]);
+    let mut outputs: Vec<PathBuf> = Kind::ALL.iter().map(|k| a.out.join(format!("{}.mlp", k.name()))).collect();
+    outputs.push(a.out.join("ours_int8.txt"));
+    outputs.extend(a.export_rs.clone());
+    outputs.extend(a.golden.clone());
+    pbm_io::files::refuse_overwriting_inputs(outputs.iter().map(PathBuf::as_path), inputs.iter().map(PathBuf::as_path))
+        .map_err(anyhow::Error::msg)
+}
+
 /// Reads a model written by [`write_mlp`].
 pub fn read_mlp(path: &Path) -> Result<(Mlp, Vec<FaultClass>)> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let text = pbm_io::files::read_text(path, MAX_MODEL_BYTES)?;
     let err = |line: usize, m: &str| anyhow::anyhow!("{}:{}: {m}", path.display(), line + 1);
     let mut lines = text.lines().enumerate();
     let mut next = |key: &str| -> Result<(usize, Vec<String>)> {
@@ -696,7 +712,7 @@ pub fn write_quant(path: &Path, q: &QuantParams) -> Result<()> {
 
 /// Reads a model written by [`write_quant`].
 pub fn read_quant(path: &Path) -> Result<QuantParams> {
-    let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let text = pbm_io::files::read_text(path, MAX_MODEL_BYTES)?;
     let bad = |what: &str| anyhow::anyhow!("{}: bad or missing `{what}`", path.display());
     let mut lines = text.lines();
     let mut field = |key: &str| -> Result<Vec<String>> {
@@ -993,6 +1009,7 @@ pub fn fit_temperature(q: &QuantParams, rows: &[(Vec<f64>, usize)]) -> f64 {
 /// `host-sim train`.
 pub fn run(a: &TrainOptions) -> Result<Skipped> {
     let t0 = std::time::Instant::now();
+    guard_inputs(a)?;
     let (train, skipped) = dataset_features(&a.dataset, Some("train"))?;
     eprintln!("features of {} training traces: {:.1} s", train.len(), t0.elapsed().as_secs_f64());
     if a.refit_region {

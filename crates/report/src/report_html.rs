@@ -297,7 +297,6 @@ pub fn render(page: &Page) -> String {
 // ---------------------------------------------------------------------------------------------
 // Markdown (the subset of the bench reports)
 
-
 // ---------------------------------------------------------------------------------------------
 // Structural check
 
@@ -350,7 +349,6 @@ pub fn code_reference(html: &str) -> Option<String> {
         (next.is_ascii_digit()).then(|| text[i..i + m.len() + digits].to_owned())
     })
 }
-
 
 /// Checks a rendered page without a browser: one document, no script, no external resource,
 /// every `required` section present and non-empty, every inline SVG drawing something (a
@@ -459,5 +457,4 @@ mod tests {
         assert_eq!(utc_text(951_782_400), "2000-02-29 00:00:00 UTC");
         assert_eq!(utc_text(1_795_437_058), "2026-11-23 12:30:58 UTC");
     }
-
 }
