@@ -53,10 +53,7 @@ type CheckedRow = Result<ManifestRow, FileError>;
 /// Parses manifest text into rows with their lines: the file's structure (header, columns,
 /// quoting) must be right, and a row whose content is wrong (a path leaving the data set, an
 /// empty field) comes back as that row's error.
-fn parse_manifest_lines(
-    name: &str,
-    text: impl std::io::BufRead,
-) -> Result<Vec<(usize, CheckedRow)>, FileError> {
+fn parse_manifest_lines(name: &str, text: impl std::io::BufRead) -> Result<Vec<(usize, CheckedRow)>, FileError> {
     let rows: Vec<(usize, ManifestRow)> = read_rows_checked(name, text, |header| {
         if header.iter().eq(MANIFEST_COLUMNS) {
             Ok(())
