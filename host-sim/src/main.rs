@@ -27,7 +27,7 @@ fn exit_code(skipped: &Skipped) -> ExitCode {
     if skipped.is_empty() {
         ExitCode::SUCCESS
     } else {
-        eprintln!("{skipped}");
+        eprintln!("{skipped}; everything else completed");
         ExitCode::from(SKIPPED_EXIT_CODE)
     }
 }

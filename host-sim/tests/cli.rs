@@ -81,9 +81,19 @@ fn a_fifo_in_a_manifest_is_refused_without_hanging() {
     assert_eq!(out.status.code(), Some(3), "{stderr}");
     assert!(stderr.contains("pipe.csv") && stderr.contains("not a regular file"), "{stderr}");
     assert!(String::from_utf8_lossy(&out.stdout).contains("good.csv"));
-    // A FIFO given directly is refused too.
+    // A FIFO given directly is refused too; with nothing replayed the run failed (exit 1).
     let out = host_sim(&[os("replay"), fifo.as_os_str()]);
-    assert_eq!(out.status.code(), Some(3), "{}", String::from_utf8_lossy(&out.stderr));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("not a regular file") && stderr.contains("no trace could be replayed"), "{stderr}");
+    // A manifest that is a FIFO is refused as such (not read as a missing manifest, not read).
+    let other = tmp.path().join("other");
+    std::fs::create_dir_all(&other).unwrap();
+    assert!(Command::new("mkfifo").arg(other.join("manifest.csv")).status().unwrap().success());
+    let out = host_sim(&[os("replay"), other.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("manifest.csv: not a regular file"), "{stderr}");
 }
 
 #[cfg(unix)]

@@ -149,7 +149,9 @@ impl Dataset {
 
     /// Whether `dir` holds a manifest (is a data set rather than a trace or another directory).
     pub fn is_dataset(dir: &Path) -> bool {
-        dir.join(MANIFEST).is_file()
+        // Whatever `manifest.csv` is: a special file or a link leaving the set is then refused
+        // by [`Self::open`] with that reason, not taken for a missing manifest.
+        std::fs::symlink_metadata(dir.join(MANIFEST)).is_ok()
     }
 
     /// The path of a row's trace, refused if it leaves the data set (symbolic links resolved)

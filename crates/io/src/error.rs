@@ -82,6 +82,6 @@ impl fmt::Display for Skipped {
         for e in &self.0 {
             writeln!(f, "skipped: {e}")?;
         }
-        write!(f, "{} input(s) skipped; everything else completed", self.0.len())
+        write!(f, "{} input(s) skipped", self.0.len())
     }
 }

@@ -639,8 +639,12 @@ pub fn run(path: &Path, opts: &ReplayOptions) -> Result<Skipped> {
         let frames = write_can_log(log, results.iter().filter_map(|r| r.as_ref().ok()).map(|t| &t.replayed))?;
         eprintln!("wrote {frames} CAN frames to {}", log.display());
     }
+    let replayed = results.iter().filter(|r| r.is_ok()).count();
     for e in results.into_iter().filter_map(Result::err) {
         skipped.push(e);
+    }
+    if replayed == 0 {
+        bail!("no trace could be replayed\n{skipped}");
     }
     Ok(skipped)
 }
