@@ -299,7 +299,7 @@ pub struct MetroArgs {
     /// The MetroPT-3 CSV record.
     #[arg(default_value = pbm_lab::metro::DEFAULT_PATH)]
     path: PathBuf,
-    /// Write the verdict as JSON (same keys as `host-sim audit --json`).
+    /// Write the verdict as JSON (the keys of `host-sim audit --json` but the per-trace NMSE: one record).
     #[arg(long)]
     json: Option<PathBuf>,
     /// Plots: a `.svg` file (measured vs adiabatic vs extended), or a directory that receives
