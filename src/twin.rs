@@ -47,7 +47,7 @@
 //! ([`vent_increments`]) and the chamber's pressure/temperature step ([`chamber_substep`])
 //! are public pieces: [`crate::reservoir`] assembles its compressor-fed reservoir from them.
 
-use crate::fixed::Q;
+use crate::fixed::{sat_i64, Q};
 use crate::mechanism::{Extensions, Mechanism::*};
 use crate::params::{choked_orifice_gain, circle_area, ParamError, TwinParams, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
 use crate::units::{Meters, MetersQ32, PressureQ24};
@@ -431,7 +431,10 @@ impl TwinCoeffs {
         ExtCoeffs {
             active: true,
             line: LineCoeffs::new(e[TransportDelay], e[ValveLag], h),
-            heat_rate: heat_rate(e[HeatTransfer], h),
+            // A time constant shorter than the substep is the isothermal limit: h/τ = 1 takes
+            // θ to the wall temperature in one substep. Above 1 the explicit step overshoots
+            // (θ oscillates about 1) and from h/τ ≈ 6 its products overflow; τ ≥ h unchanged.
+            heat_rate: heat_rate(e[HeatTransfer], h).min(Q::ONE),
             sqrt_theta_s: Q::from_f64(libm::sqrt(theta_s)),
             inv_sqrt_theta_s: Q::from_f64(1.0 / libm::sqrt(theta_s)),
             sensor: SensorCoeffs::new(e[SensorLag], e[SensorOffset], e[SensorGain], h),
@@ -628,7 +631,12 @@ impl Twin {
         let f_spring = k.preload + k.spring.mul_floor(s.x.widen()) + spring_quad(&k, s.x);
         let f_net = f_press - f_spring - f_bristle + k.sigma1.mul_floor(zdot_nl);
 
-        let mut v_new: Q<i64, 24> = (v + f_net.mul_floor(k.accel)).mul_floor(k.damping).clamp(-V_MAX, V_MAX);
+        // At the corners of the parameter box (light piston, stiff bristles, large σ1) an
+        // explicit LuGre step can blow up the bristle term far beyond any physical force: the
+        // two products saturate instead of overflowing ([`corner_mul_floor`]), and the velocity
+        // is clamped to ±V_MAX as before.
+        let dv: Q<i64, 24> = corner_mul_floor(f_net, k.accel);
+        let mut v_new: Q<i64, 24> = corner_mul_floor(v + dv, k.damping).clamp(-V_MAX, V_MAX);
         let x_old = s.x.widen();
         let mut x_new: Q<i64, 32> = x_old + v_new.mul_floor(k.step);
         let stroke = k.stroke.widen();
@@ -652,7 +660,8 @@ impl Twin {
         }
 
         let zdot: Q<i64, 24> = v_new - v_new.abs().mul_floor(ratio);
-        let z_new: Q<i64, 32> = (s.z.widen() + zdot.mul_floor(k.step)).clamp(-Z_MAX, Z_MAX);
+        // |zdot| reaches |v| (1 + ratio), ratio up to 2^11: saturate as above, then clamp.
+        let z_new: Q<i64, 32> = (s.z.widen() + corner_mul_floor(zdot, k.step)).clamp(-Z_MAX, Z_MAX);
 
         s.v = v_new.narrow();
         s.x = x_new.narrow();
@@ -674,6 +683,23 @@ impl Twin {
         let work = compression_work(p, dx, k.kappa_area_per_v0);
         let dp: Q<i64, 24> = ((inflow - leak) * mult - work).mul_round(inv_vol);
         s.p = PressureQ24::from_q(p.q() + dp).clamp(PressureQ24(0), P_MAX);
+    }
+}
+
+/// A piston product that only overflows at the corners of the valid parameter box (a light
+/// piston with stiff bristles and a large σ1, whose explicit LuGre step blows up): saturated
+/// there ([`Q::saturating_mul_floor`], the same bits as [`Q::mul_floor`] wherever that fits).
+///
+/// Only in builds with the `extensions` feature (the host, which builds twins of any valid
+/// parameter set). The firmware builds without it and runs the nominal coefficients only
+/// ([`TwinCoeffs::NOMINAL`]), whose products stay far from the limit (the golden tests run them
+/// with overflow checks); the saturation would cost it 188 B of flash it does not have.
+#[inline(always)]
+fn corner_mul_floor<const F: u32, const G: u32, const H: u32>(a: Q<i64, F>, b: Q<i64, G>) -> Q<i64, H> {
+    if cfg!(feature = "extensions") {
+        a.saturating_mul_floor(b)
+    } else {
+        a.mul_floor(b)
     }
 }
 
@@ -751,7 +777,9 @@ impl Twin {
             if e.droop != Q::ZERO && upstream == k.supply && p < upstream {
                 upstream = drooped_supply(k.supply, p, k.c_in, share, e);
             }
-            let f: Q<i64, 40> = orifice_dp(upstream, p, k.c_in).mul_floor(share);
+            // Q40 · Q30: the 64-bit product overflows from a ≈ 2.8 mm orifice at 7.7 bar on
+            // (share ≤ 1, so the result always fits): formed in 128 bits.
+            let f: Q<i64, 40> = orifice_dp(upstream, p, k.c_in).wide_mul_floor(share);
             if !thermal {
                 energy += f;
                 mass += f;
@@ -842,7 +870,9 @@ pub fn chamber_substep(
         let dm_theta: Q<i64, 24> = dm.mul_floor(theta_pos);
         let dm_rel: Q<i64, 30> = (dm_theta.rescale::<54>() * 5 / 7).div_trunc(p_pos);
         let rel: Q<i64, 30> = dp.div_trunc(p_pos) + dvol - dm_rel;
-        theta_new = (theta_pos + theta_pos.mul_floor(rel)).clamp(Q(1 << 22), Q(1 << 26));
+        // rel is large when the chamber is near vacuum (p_pos ≥ 1/256 bar): saturated, then
+        // clamped (the same bits wherever the product fits).
+        theta_new = (theta_pos + theta_pos.saturating_mul_floor(rel)).clamp(Q(1 << 22), Q(1 << 26));
     }
     (PressureQ24::from_q(p.q() + dp).clamp(PressureQ24(0), P_MAX), theta_new)
 }
@@ -852,9 +882,13 @@ pub fn chamber_substep(
 fn drooped_supply(supply: PressureQ24, p: PressureQ24, c: Q<i64, 32>, share: Q<i64, 30>, e: &ExtCoeffs) -> PressureQ24 {
     // g(pu) = pu − Ps + sag(pu): increasing in pu, g(p) ≤ 0 ≤ g(Ps).
     let g = |pu: PressureQ24| -> Q<i64, 24> {
-        let f: Q<i64, 40> = orifice_dp(pu, p, c).max(Q::ZERO).mul_floor(share);
-        // droop · f / droop_ref: f and droop_ref are both Q40.
-        pu.q() - supply.q() + e.droop * f.0 / e.droop_ref.0
+        // Q40 · Q30 in 128 bits, as in `pressure_substep_ext`.
+        let f: Q<i64, 40> = orifice_dp(pu, p, c).max(Q::ZERO).wide_mul_floor(share);
+        // droop · f / droop_ref: f and droop_ref are both Q40. The product overflows 64 bits
+        // with a large orifice and droop: 128 bits (the quotient, droop times the flow ratio to
+        // the nominal orifice's, is at most ≈ 64 · 5 bar and fits).
+        let sag = i128::from(e.droop.0) * i128::from(f.0) / i128::from(e.droop_ref.0);
+        pu.q() - supply.q() + Q(sat_i64(sag))
     };
     let (mut lo, mut hi) = (p, supply);
     let (mut g_lo, mut g_hi) = (g(lo), g(hi));
@@ -871,7 +905,9 @@ fn drooped_supply(supply: PressureQ24, p: PressureQ24, c: Q<i64, 32>, share: Q<i
     if span <= Q::ZERO {
         return lo;
     }
-    PressureQ24::from_q(lo.q() + Q(i64::from(hi.0 - lo.0) * -g_lo.0 / span.0))
+    // (hi − lo) · −g(lo) / span ≤ hi − lo: the product in 128 bits (g can reach hundreds of bar).
+    let step = i128::from(hi.0 - lo.0) * -i128::from(g_lo.0) / i128::from(span.0);
+    PressureQ24::from_q(lo.q() + Q(sat_i64(step)))
 }
 
 /// Square root of a Q24 value (integer square root: same bits on every target; negative
