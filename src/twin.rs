@@ -722,6 +722,12 @@ impl Twin {
     /// [`Twin::update`] with the optional mechanisms: [`SUBSTEPS`] substeps of valve, piston
     /// (skipped while held), pressure (and gas temperature) and transducer.
     fn update_extended(&mut self, valve_open: bool) -> TwinSample {
+        self.update_extended_with(valve_open, true).0
+    }
+
+    /// [`Self::update_extended`]; `shortcut` allows the held shortcut (tests compare it with the
+    /// full piston substeps). Also returns whether the piston substeps were skipped.
+    fn update_extended_with(&mut self, valve_open: bool, shortcut: bool) -> (TwinSample, bool) {
         let e = self.coeffs.ext;
         self.ext.line.command(valve_open);
         // Held test on the most open upstream reachable in this sample, with a wide margin for
@@ -730,18 +736,18 @@ impl Twin {
         let upstream = if any_open { self.coeffs.supply } else { PressureQ24::ATMOSPHERE };
         let p = self.state.p.q();
         let choked: Q<i64, 24> = p.mul_floor(self.coeffs.c_in + self.coeffs.c_leak);
-        // NB: the laminar term has always been shifted by 16, not 40: its raw value is the Q48
-        // product read as Q24, 2^24 times the laminar increment. With a laminar leak on, the
-        // bound then exceeds every representable pressure (except at exactly 1 bar abs), so the
-        // held shortcut is practically never taken: a wider bound only costs speed. Kept bit for
-        // bit here; the types make the format visible.
-        let laminar = Q::<i64, 24>((p - ATMOSPHERE).abs().mul_floor::<40, 48>(e.laminar).0);
+        // Laminar increment per substep: |p − P0| (Q24) · laminar (Q40) → Q24, a 40-bit shift.
+        // (It used to shift by 16, reading the Q48 product as Q24: 2^24 times too large, so
+        // with a laminar leak the held shortcut was never taken. Results are the same either
+        // way, only the speed differs: `held_shortcut_with_a_laminar_leak_changes_no_result`.)
+        // 128-bit product: |p − P0| up to 29 bar times the largest laminar gain overflows 64.
+        let laminar: Q<i64, 24> = (p - ATMOSPHERE).abs().wide_mul_floor(e.laminar);
         // p/64 while the gas temperature is a state.
         let thermal = Q::<i64, 24>(p.0 >> 6);
         let extra = choked * i64::from(SUBSTEPS)
             + laminar * 2 * i64::from(SUBSTEPS)
             + thermal * i64::from(e.heat_rate != Q::ZERO);
-        let held = self.piston_held_within(upstream, extra);
+        let held = shortcut && self.piston_held_within(upstream, extra);
         for _ in 0..SUBSTEPS {
             let p_start = self.state.p.q();
             let dx = if held { Q::ZERO } else { self.piston_substep() };
@@ -751,7 +757,7 @@ impl Twin {
             }
         }
         let lagged = if e.sensor.lags() { self.ext.sensed } else { self.state.p.q() };
-        TwinSample { pressure: e.sensor.read(lagged), travel: self.state.x }
+        (TwinSample { pressure: e.sensor.read(lagged), travel: self.state.x }, held)
     }
 
     /// One 2 ms substep of valve and chamber with the optional mechanisms.
@@ -1041,6 +1047,85 @@ mod tests {
         tiny.dead_volume_m3 = 0.3e-3;
         assert_eq!(Twin::new(&tiny).err(), Some(ParamError::Orifice));
         assert_eq!(Twin::new(&TwinParams::nominal().with_supply_bar_g(f64::NAN)).err(), Some(ParamError::Supply));
+    }
+
+    /// Runs `p` open for 40 s and closed for 20 s with the held shortcut allowed and without
+    /// it; asserts every sample and state equal, returns the samples where the shortcut was taken.
+    fn held_shortcut_run(p: &TwinParams) -> usize {
+        let (Ok(mut fast), Ok(mut full)) = (Twin::new(p), Twin::new(p)) else { return 0 };
+        let mut taken = 0;
+        for i in 0..6000 {
+            let open = i < 4000;
+            let (a, held) = fast.update_extended_with(open, true);
+            let (b, _) = full.update_extended_with(open, false);
+            assert_eq!((a, fast.state, fast.ext), (b, full.state, full.ext), "sample {i} of {p:?}");
+            taken += usize::from(held);
+        }
+        taken
+    }
+
+    /// The laminar part of the held bound used to be 2^24 times too large, so with a laminar
+    /// leak the shortcut was never taken. Fixed, it is taken, and it changes no result (the
+    /// bound stays conservative): the same bits as the full piston substeps.
+    #[test]
+    fn held_shortcut_with_a_laminar_leak_changes_no_result() {
+        // Nominal brake, laminar leaks over the valid range, alone and with other mechanisms.
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut unit = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut runs, mut taken_runs) = (0, 0);
+        for case in 0..160 {
+            let mut p = TwinParams::nominal().with_orifice_mm(0.5 + 4.0 * unit());
+            if case >= 120 {
+                // Anywhere in the base parameter box.
+                let mut r = |lo: f64, hi: f64| lo + (hi - lo) * unit();
+                p.supply = crate::units::BarG(r(0.0, 15.0));
+                p.orifice = Meters(r(0.0, 10e-3));
+                p.dead_volume_m3 = r(0.2e-3, 50e-3);
+                p.piston_area_m2 = r(1e-4, 0.1);
+                p.stroke = Meters(r(1e-3, 0.4));
+                p.mass_kg = r(0.5, 500.0);
+                p.preload_n = r(0.0, 60e3);
+                p.spring_rate_n_per_m = r(0.0, 4e6);
+                p.sigma0_n_per_m = r(1e3, 4e6);
+                p.sigma1_n_s_per_m = r(0.0, 1e5);
+                p.viscous_n_s_per_m = r(0.0, 1e5);
+                p.coulomb_n = r(1.0, 1e4);
+                p.static_n = r(p.coulomb_n, 1e4);
+                p.stribeck_m_per_s = r(1e-4, 1.0);
+            }
+            if case % 4 == 1 {
+                p = p.with_leak_mm(unit());
+            }
+            let (lo, hi) = LaminarLeak.descriptor().brake.valid;
+            p.ext[LaminarLeak] = lo + (hi - lo) * unit().powi(2);
+            if case % 2 == 1 {
+                for m in crate::mechanism::Mechanism::ALL {
+                    if m != LaminarLeak && unit() < 0.3 {
+                        let (lo, hi) = m.descriptor().brake.valid;
+                        p.ext[m] = lo + (hi - lo) * unit();
+                    }
+                }
+            }
+            if p.ext[LaminarLeak] == 0.0 || Twin::new(&p).is_err() {
+                continue;
+            }
+            runs += 1;
+            // (The old bound let it through at exactly 1 bar abs only: the first sample.)
+            taken_runs += usize::from(held_shortcut_run(&p) > 1);
+        }
+        assert!(runs >= 120, "{runs} runs");
+        assert!(taken_runs * 10 >= runs * 9, "shortcut taken in {taken_runs} of {runs} runs");
+        // A small laminar leak on the nominal brake: once the piston is at its stop the
+        // shortcut is taken in most samples.
+        let mut p = TwinParams::nominal();
+        p.ext[LaminarLeak] = 0.5;
+        let n = held_shortcut_run(&p);
+        assert!(n > 1500, "shortcut taken in {n} samples");
     }
 
     #[test]
