@@ -241,13 +241,6 @@ impl<const F: u32> Q<i64, F> {
         Q(sat_i64((self.0 as i128 * rhs.0 as i128) >> product_shift::<F, G, H>()))
     }
 
-    /// As [`Self::div_trunc`] with the shifted dividend in `i128` and the quotient saturated to
-    /// the `i64` range: the same bits as [`Self::div_trunc`] wherever that does not overflow.
-    #[inline(always)]
-    pub const fn wide_div_trunc<const G: u32, const H: u32>(self, rhs: Q<i64, G>) -> Q<i64, H> {
-        Q(sat_i64(((self.0 as i128) << quotient_shift::<F, G, H>()) / rhs.0 as i128))
-    }
-
     /// The same value in format `G`: shifted left (exact) or right (rounded toward minus
     /// infinity).
     #[inline(always)]
@@ -362,10 +355,5 @@ mod tests {
         assert_eq!(big.wide_mul_floor::<30, 40>(Q(1 << 30)), big);
         assert_eq!(Q::<i64, 0>(i64::MAX).wide_mul_floor::<0, 0>(Q(2)), Q(i64::MAX));
         assert_eq!(Q::<i64, 0>(i64::MIN).wide_mul_floor::<0, 0>(Q(2)), Q(i64::MIN));
-        assert_eq!(
-            Q::<i64, 40>(-7 << 40).wide_div_trunc::<24, 40>(Q(3 << 24)),
-            Q::<i64, 40>(-7 << 40).div_trunc::<24, 40>(Q(3 << 24))
-        );
-        assert_eq!(Q::<i64, 40>(i64::MAX).wide_div_trunc::<24, 40>(Q(1)), Q(i64::MAX));
     }
 }
