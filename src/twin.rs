@@ -1051,6 +1051,7 @@ mod tests {
 
     /// Runs `p` open for 40 s and closed for 20 s with the held shortcut allowed and without
     /// it; asserts every sample and state equal, returns the samples where the shortcut was taken.
+    #[cfg(feature = "extensions")]
     fn held_shortcut_run(p: &TwinParams) -> usize {
         let (Ok(mut fast), Ok(mut full)) = (Twin::new(p), Twin::new(p)) else { return 0 };
         let mut taken = 0;
@@ -1067,6 +1068,7 @@ mod tests {
     /// The laminar part of the held bound used to be 2^24 times too large, so with a laminar
     /// leak the shortcut was never taken. Fixed, it is taken, and it changes no result (the
     /// bound stays conservative): the same bits as the full piston substeps.
+    #[cfg(feature = "extensions")]
     #[test]
     fn held_shortcut_with_a_laminar_leak_changes_no_result() {
         // Nominal brake, laminar leaks over the valid range, alone and with other mechanisms.
