@@ -232,6 +232,15 @@ impl<const F: u32> Q<i64, F> {
         Q(self.0.saturating_mul(rhs.0) >> product_shift::<F, G, H>())
     }
 
+    /// As [`Self::mul_floor`] with the product formed in `i128`, so it cannot overflow, and the
+    /// shifted result saturated to the `i64` range: the same bits as [`Self::mul_floor`]
+    /// wherever that does not overflow. For the extended twin's products of a Q40 increment
+    /// and a Q24/Q30 factor, whose 64-bit product only fits for small orifices or volumes.
+    #[inline(always)]
+    pub const fn wide_mul_floor<const G: u32, const H: u32>(self, rhs: Q<i64, G>) -> Q<i64, H> {
+        Q(sat_i64((self.0 as i128 * rhs.0 as i128) >> product_shift::<F, G, H>()))
+    }
+
     /// The same value in format `G`: shifted left (exact) or right (rounded toward minus
     /// infinity).
     #[inline(always)]
@@ -264,6 +273,18 @@ impl<const F: u32> Q<i64, F> {
 #[inline(always)]
 pub const fn rshr(a: i64, s: u32) -> i64 {
     (a + (1i64 << (s - 1))) >> s
+}
+
+/// Saturating conversion of an `i128` to `i64`.
+#[inline(always)]
+pub const fn sat_i64(a: i128) -> i64 {
+    if a > i64::MAX as i128 {
+        i64::MAX
+    } else if a < i64::MIN as i128 {
+        i64::MIN
+    } else {
+        a as i64
+    }
 }
 
 /// Saturating conversion of an `i64` to `i32`.
@@ -327,5 +348,12 @@ mod tests {
         assert_eq!(Q::<i64, 0>(1 << 40 | 5).narrow(), Q::<i32, 0>(5));
         assert_eq!(Q::<i64, 3>(5) * -2 + Q(1) - Q(2), Q(-11));
         assert_eq!(-Q::<i64, 3>(5).abs(), Q(-5));
+        // The wide forms equal the narrow ones where those fit, and saturate where not.
+        let w: Q<i64, 32> = a.wide_mul_floor(b);
+        assert_eq!(w, floor);
+        let big = Q::<i64, 40>(1 << 40);
+        assert_eq!(big.wide_mul_floor::<30, 40>(Q(1 << 30)), big);
+        assert_eq!(Q::<i64, 0>(i64::MAX).wide_mul_floor::<0, 0>(Q(2)), Q(i64::MAX));
+        assert_eq!(Q::<i64, 0>(i64::MIN).wide_mul_floor::<0, 0>(Q(2)), Q(i64::MIN));
     }
 }

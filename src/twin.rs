@@ -47,7 +47,7 @@
 //! ([`vent_increments`]) and the chamber's pressure/temperature step ([`chamber_substep`])
 //! are public pieces: [`crate::reservoir`] assembles its compressor-fed reservoir from them.
 
-use crate::fixed::Q;
+use crate::fixed::{sat_i64, Q};
 use crate::mechanism::{Extensions, Mechanism::*};
 use crate::params::{choked_orifice_gain, circle_area, ParamError, TwinParams, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
 use crate::units::{Meters, MetersQ32, PressureQ24};
@@ -431,7 +431,10 @@ impl TwinCoeffs {
         ExtCoeffs {
             active: true,
             line: LineCoeffs::new(e[TransportDelay], e[ValveLag], h),
-            heat_rate: heat_rate(e[HeatTransfer], h),
+            // A time constant shorter than the substep is the isothermal limit: h/τ = 1 takes
+            // θ to the wall temperature in one substep. Above 1 the explicit step overshoots
+            // (θ oscillates about 1) and from h/τ ≈ 6 its products overflow; τ ≥ h unchanged.
+            heat_rate: heat_rate(e[HeatTransfer], h).min(Q::ONE),
             sqrt_theta_s: Q::from_f64(libm::sqrt(theta_s)),
             inv_sqrt_theta_s: Q::from_f64(1.0 / libm::sqrt(theta_s)),
             sensor: SensorCoeffs::new(e[SensorLag], e[SensorOffset], e[SensorGain], h),
@@ -628,7 +631,12 @@ impl Twin {
         let f_spring = k.preload + k.spring.mul_floor(s.x.widen()) + spring_quad(&k, s.x);
         let f_net = f_press - f_spring - f_bristle + k.sigma1.mul_floor(zdot_nl);
 
-        let mut v_new: Q<i64, 24> = (v + f_net.mul_floor(k.accel)).mul_floor(k.damping).clamp(-V_MAX, V_MAX);
+        // At the corners of the parameter box (light piston, stiff bristles, large σ1) an
+        // explicit LuGre step can blow up the bristle term far beyond any physical force: the
+        // two products saturate instead of overflowing ([`corner_mul_floor`]), and the velocity
+        // is clamped to ±V_MAX as before.
+        let dv: Q<i64, 24> = corner_mul_floor(f_net, k.accel);
+        let mut v_new: Q<i64, 24> = corner_mul_floor(v + dv, k.damping).clamp(-V_MAX, V_MAX);
         let x_old = s.x.widen();
         let mut x_new: Q<i64, 32> = x_old + v_new.mul_floor(k.step);
         let stroke = k.stroke.widen();
@@ -652,7 +660,8 @@ impl Twin {
         }
 
         let zdot: Q<i64, 24> = v_new - v_new.abs().mul_floor(ratio);
-        let z_new: Q<i64, 32> = (s.z.widen() + zdot.mul_floor(k.step)).clamp(-Z_MAX, Z_MAX);
+        // |zdot| reaches |v| (1 + ratio), ratio up to 2^11: saturate as above, then clamp.
+        let z_new: Q<i64, 32> = (s.z.widen() + corner_mul_floor(zdot, k.step)).clamp(-Z_MAX, Z_MAX);
 
         s.v = v_new.narrow();
         s.x = x_new.narrow();
@@ -677,6 +686,23 @@ impl Twin {
     }
 }
 
+/// A piston product that only overflows at the corners of the valid parameter box (a light
+/// piston with stiff bristles and a large σ1, whose explicit LuGre step blows up): saturated
+/// there ([`Q::saturating_mul_floor`], the same bits as [`Q::mul_floor`] wherever that fits).
+///
+/// Only in builds with the `extensions` feature (the host, which builds twins of any valid
+/// parameter set). The firmware builds without it and runs the nominal coefficients only
+/// ([`TwinCoeffs::NOMINAL`]), whose products stay far from the limit (the golden tests run them
+/// with overflow checks); the saturation would cost it 188 B of flash it does not have.
+#[inline(always)]
+fn corner_mul_floor<const F: u32, const G: u32, const H: u32>(a: Q<i64, F>, b: Q<i64, G>) -> Q<i64, H> {
+    if cfg!(feature = "extensions") {
+        a.saturating_mul_floor(b)
+    } else {
+        a.mul_floor(b)
+    }
+}
+
 /// V0/V for the piston at `x`, from V/V0 = 1 + (A/V0) x in Q15 (clamped to 2^-15..=32) and a
 /// 32-bit division.
 #[inline(always)]
@@ -696,6 +722,12 @@ impl Twin {
     /// [`Twin::update`] with the optional mechanisms: [`SUBSTEPS`] substeps of valve, piston
     /// (skipped while held), pressure (and gas temperature) and transducer.
     fn update_extended(&mut self, valve_open: bool) -> TwinSample {
+        self.update_extended_with(valve_open, true).0
+    }
+
+    /// [`Self::update_extended`]; `shortcut` allows the held shortcut (tests compare it with the
+    /// full piston substeps). Also returns whether the piston substeps were skipped.
+    fn update_extended_with(&mut self, valve_open: bool, shortcut: bool) -> (TwinSample, bool) {
         let e = self.coeffs.ext;
         self.ext.line.command(valve_open);
         // Held test on the most open upstream reachable in this sample, with a wide margin for
@@ -704,18 +736,18 @@ impl Twin {
         let upstream = if any_open { self.coeffs.supply } else { PressureQ24::ATMOSPHERE };
         let p = self.state.p.q();
         let choked: Q<i64, 24> = p.mul_floor(self.coeffs.c_in + self.coeffs.c_leak);
-        // NB: the laminar term has always been shifted by 16, not 40: its raw value is the Q48
-        // product read as Q24, 2^24 times the laminar increment. With a laminar leak on, the
-        // bound then exceeds every representable pressure (except at exactly 1 bar abs), so the
-        // held shortcut is practically never taken: a wider bound only costs speed. Kept bit for
-        // bit here; the types make the format visible.
-        let laminar = Q::<i64, 24>((p - ATMOSPHERE).abs().mul_floor::<40, 48>(e.laminar).0);
+        // Laminar increment per substep: |p − P0| (Q24) · laminar (Q40) → Q24, a 40-bit shift.
+        // (It used to shift by 16, reading the Q48 product as Q24: 2^24 times too large, so
+        // with a laminar leak the held shortcut was never taken. Results are the same either
+        // way, only the speed differs: `held_shortcut_with_a_laminar_leak_changes_no_result`.)
+        // 128-bit product: |p − P0| up to 29 bar times the largest laminar gain overflows 64.
+        let laminar: Q<i64, 24> = (p - ATMOSPHERE).abs().wide_mul_floor(e.laminar);
         // p/64 while the gas temperature is a state.
         let thermal = Q::<i64, 24>(p.0 >> 6);
         let extra = choked * i64::from(SUBSTEPS)
             + laminar * 2 * i64::from(SUBSTEPS)
             + thermal * i64::from(e.heat_rate != Q::ZERO);
-        let held = self.piston_held_within(upstream, extra);
+        let held = shortcut && self.piston_held_within(upstream, extra);
         for _ in 0..SUBSTEPS {
             let p_start = self.state.p.q();
             let dx = if held { Q::ZERO } else { self.piston_substep() };
@@ -725,7 +757,7 @@ impl Twin {
             }
         }
         let lagged = if e.sensor.lags() { self.ext.sensed } else { self.state.p.q() };
-        TwinSample { pressure: e.sensor.read(lagged), travel: self.state.x }
+        (TwinSample { pressure: e.sensor.read(lagged), travel: self.state.x }, held)
     }
 
     /// One 2 ms substep of valve and chamber with the optional mechanisms.
@@ -751,7 +783,9 @@ impl Twin {
             if e.droop != Q::ZERO && upstream == k.supply && p < upstream {
                 upstream = drooped_supply(k.supply, p, k.c_in, share, e);
             }
-            let f: Q<i64, 40> = orifice_dp(upstream, p, k.c_in).mul_floor(share);
+            // Q40 · Q30: the 64-bit product overflows from a ≈ 2.8 mm orifice at 7.7 bar on
+            // (share ≤ 1, so the result always fits): formed in 128 bits.
+            let f: Q<i64, 40> = orifice_dp(upstream, p, k.c_in).wide_mul_floor(share);
             if !thermal {
                 energy += f;
                 mass += f;
@@ -842,7 +876,9 @@ pub fn chamber_substep(
         let dm_theta: Q<i64, 24> = dm.mul_floor(theta_pos);
         let dm_rel: Q<i64, 30> = (dm_theta.rescale::<54>() * 5 / 7).div_trunc(p_pos);
         let rel: Q<i64, 30> = dp.div_trunc(p_pos) + dvol - dm_rel;
-        theta_new = (theta_pos + theta_pos.mul_floor(rel)).clamp(Q(1 << 22), Q(1 << 26));
+        // rel is large when the chamber is near vacuum (p_pos ≥ 1/256 bar): saturated, then
+        // clamped (the same bits wherever the product fits).
+        theta_new = (theta_pos + theta_pos.saturating_mul_floor(rel)).clamp(Q(1 << 22), Q(1 << 26));
     }
     (PressureQ24::from_q(p.q() + dp).clamp(PressureQ24(0), P_MAX), theta_new)
 }
@@ -852,9 +888,13 @@ pub fn chamber_substep(
 fn drooped_supply(supply: PressureQ24, p: PressureQ24, c: Q<i64, 32>, share: Q<i64, 30>, e: &ExtCoeffs) -> PressureQ24 {
     // g(pu) = pu − Ps + sag(pu): increasing in pu, g(p) ≤ 0 ≤ g(Ps).
     let g = |pu: PressureQ24| -> Q<i64, 24> {
-        let f: Q<i64, 40> = orifice_dp(pu, p, c).max(Q::ZERO).mul_floor(share);
-        // droop · f / droop_ref: f and droop_ref are both Q40.
-        pu.q() - supply.q() + e.droop * f.0 / e.droop_ref.0
+        // Q40 · Q30 in 128 bits, as in `pressure_substep_ext`.
+        let f: Q<i64, 40> = orifice_dp(pu, p, c).max(Q::ZERO).wide_mul_floor(share);
+        // droop · f / droop_ref: f and droop_ref are both Q40. The product overflows 64 bits
+        // with a large orifice and droop: 128 bits (the quotient, droop times the flow ratio to
+        // the nominal orifice's, is at most ≈ 64 · 5 bar and fits).
+        let sag = i128::from(e.droop.0) * i128::from(f.0) / i128::from(e.droop_ref.0);
+        pu.q() - supply.q() + Q(sat_i64(sag))
     };
     let (mut lo, mut hi) = (p, supply);
     let (mut g_lo, mut g_hi) = (g(lo), g(hi));
@@ -871,7 +911,9 @@ fn drooped_supply(supply: PressureQ24, p: PressureQ24, c: Q<i64, 32>, share: Q<i
     if span <= Q::ZERO {
         return lo;
     }
-    PressureQ24::from_q(lo.q() + Q(i64::from(hi.0 - lo.0) * -g_lo.0 / span.0))
+    // (hi − lo) · −g(lo) / span ≤ hi − lo: the product in 128 bits (g can reach hundreds of bar).
+    let step = i128::from(hi.0 - lo.0) * -i128::from(g_lo.0) / i128::from(span.0);
+    PressureQ24::from_q(lo.q() + Q(sat_i64(step)))
 }
 
 /// Square root of a Q24 value (integer square root: same bits on every target; negative
@@ -1005,6 +1047,87 @@ mod tests {
         tiny.dead_volume_m3 = 0.3e-3;
         assert_eq!(Twin::new(&tiny).err(), Some(ParamError::Orifice));
         assert_eq!(Twin::new(&TwinParams::nominal().with_supply_bar_g(f64::NAN)).err(), Some(ParamError::Supply));
+    }
+
+    /// Runs `p` open for 40 s and closed for 20 s with the held shortcut allowed and without
+    /// it; asserts every sample and state equal, returns the samples where the shortcut was taken.
+    #[cfg(feature = "extensions")]
+    fn held_shortcut_run(p: &TwinParams) -> usize {
+        let (Ok(mut fast), Ok(mut full)) = (Twin::new(p), Twin::new(p)) else { return 0 };
+        let mut taken = 0;
+        for i in 0..6000 {
+            let open = i < 4000;
+            let (a, held) = fast.update_extended_with(open, true);
+            let (b, _) = full.update_extended_with(open, false);
+            assert_eq!((a, fast.state, fast.ext), (b, full.state, full.ext), "sample {i} of {p:?}");
+            taken += usize::from(held);
+        }
+        taken
+    }
+
+    /// The laminar part of the held bound used to be 2^24 times too large, so with a laminar
+    /// leak the shortcut was never taken. Fixed, it is taken, and it changes no result (the
+    /// bound stays conservative): the same bits as the full piston substeps.
+    #[cfg(feature = "extensions")]
+    #[test]
+    fn held_shortcut_with_a_laminar_leak_changes_no_result() {
+        // Nominal brake, laminar leaks over the valid range, alone and with other mechanisms.
+        let mut seed = 0x2545_f491_4f6c_dd1d_u64;
+        let mut unit = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let (mut runs, mut taken_runs) = (0, 0);
+        for case in 0..160 {
+            let mut p = TwinParams::nominal().with_orifice_mm(0.5 + 4.0 * unit());
+            if case >= 120 {
+                // Anywhere in the base parameter box.
+                let mut r = |lo: f64, hi: f64| lo + (hi - lo) * unit();
+                p.supply = crate::units::BarG(r(0.0, 15.0));
+                p.orifice = Meters(r(0.0, 10e-3));
+                p.dead_volume_m3 = r(0.2e-3, 50e-3);
+                p.piston_area_m2 = r(1e-4, 0.1);
+                p.stroke = Meters(r(1e-3, 0.4));
+                p.mass_kg = r(0.5, 500.0);
+                p.preload_n = r(0.0, 60e3);
+                p.spring_rate_n_per_m = r(0.0, 4e6);
+                p.sigma0_n_per_m = r(1e3, 4e6);
+                p.sigma1_n_s_per_m = r(0.0, 1e5);
+                p.viscous_n_s_per_m = r(0.0, 1e5);
+                p.coulomb_n = r(1.0, 1e4);
+                p.static_n = r(p.coulomb_n, 1e4);
+                p.stribeck_m_per_s = r(1e-4, 1.0);
+            }
+            if case % 4 == 1 {
+                p = p.with_leak_mm(unit());
+            }
+            let (lo, hi) = LaminarLeak.descriptor().brake.valid;
+            p.ext[LaminarLeak] = lo + (hi - lo) * unit().powi(2);
+            if case % 2 == 1 {
+                for m in crate::mechanism::Mechanism::ALL {
+                    if m != LaminarLeak && unit() < 0.3 {
+                        let (lo, hi) = m.descriptor().brake.valid;
+                        p.ext[m] = lo + (hi - lo) * unit();
+                    }
+                }
+            }
+            if p.ext[LaminarLeak] == 0.0 || Twin::new(&p).is_err() {
+                continue;
+            }
+            runs += 1;
+            // (The old bound let it through at exactly 1 bar abs only: the first sample.)
+            taken_runs += usize::from(held_shortcut_run(&p) > 1);
+        }
+        assert!(runs >= 120, "{runs} runs");
+        assert!(taken_runs * 10 >= runs * 9, "shortcut taken in {taken_runs} of {runs} runs");
+        // A small laminar leak on the nominal brake: once the piston is at its stop the
+        // shortcut is taken in most samples.
+        let mut p = TwinParams::nominal();
+        p.ext[LaminarLeak] = 0.5;
+        let n = held_shortcut_run(&p);
+        assert!(n > 1500, "shortcut taken in {n} samples");
     }
 
     #[test]
