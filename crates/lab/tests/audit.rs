@@ -126,3 +126,34 @@ fn larger_hidden_effect_sweep() {
     // draw_case is the single-mechanism shorthand.
     assert_eq!(draw_case(s, &Mechanism::ALL).expect("case").truth.len(), 1);
 }
+
+/// The finding does not depend on the orifice size (issue 17: a +0.1 bar transducer offset was
+/// found at 1.25 mm but reported as `none` at 3 and 4 mm, where the extended twin overflowed).
+/// Releases of a locomotive whose documented orifice is 3 or 4 mm, with the offset hidden.
+#[test]
+fn a_sensor_offset_is_found_whatever_the_orifice() {
+    use pbm::{AdcCounts, Meters};
+    use pbm_lab::generate::{fleet, sense, simulate_plant, GENERATE_STEP_S, TRACE_SAMPLES};
+    use rand_core::SeedableRng;
+    for (seed, orifice_mm) in [(31, 3.0), (32, 4.0)] {
+        let mut documented = fleet(seed, 1)[0].params;
+        documented.orifice = Meters::from_mm(orifice_mm);
+        let mut plant = documented;
+        plant.ext[Mechanism::SensorOffset] = 0.1;
+        let (p, _) = simulate_plant(&plant, GENERATE_STEP_S, TRACE_SAMPLES).expect("plant");
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        let mut config = pbm::TwinParams::nominal();
+        config.orifice = documented.orifice;
+        let traces = (0..RELEASES_PER_CASE)
+            .map(|k| {
+                let bar = sense(&p, &mut rng).iter().map(|&c| pbm::sensor::bar_from_adc(AdcCounts(c)).0).collect();
+                (format!("release_{k:02}.csv"), config, bar)
+            })
+            .collect();
+        let data = pbm_lab::audit::data_from_traces("orifice", traces).expect("data");
+        let out = audit(&data, AuditOptions::default()).expect("audit runs");
+        eprint!("{}", out.summary());
+        assert_eq!(out.cause, "sensor_offset", "orifice {orifice_mm} mm");
+        assert!((out.magnitude() - 0.1).abs() <= 0.02, "orifice {orifice_mm} mm: {}", out.magnitude());
+    }
+}
