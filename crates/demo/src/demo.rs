@@ -682,7 +682,7 @@ fn audit_line(a: &AuditCase) -> (String, String) {
         a.truth.iter().map(|(e, v)| format!("{} = {v:.4} {}", e.name(), e.unit())).collect::<Vec<_>>().join(" + ");
     let truth = if truth.is_empty() { "none".to_owned() } else { truth };
     let named = if a.outcome.cause_effects.is_empty() {
-        "none".to_owned()
+        a.outcome.cause.clone()
     } else {
         a.outcome
             .cause_effects

@@ -156,7 +156,7 @@ pub fn html_section(out: &AuditOutcome) -> Result<String> {
         esc(&out.source)
     );
     let cause = if out.cause_effects.is_empty() {
-        "<b>none</b>: no candidate mechanism explains the residual significantly".to_owned()
+        format!("<b>{}</b>", esc(&out.cause))
     } else {
         out.cause_effects
             .iter()
@@ -166,8 +166,9 @@ pub fn html_section(out: &AuditOutcome) -> Result<String> {
     };
     let _ = write!(
         h,
-        "<h3>Verdict</h3><p>Cause: {cause}.</p><p>NMSE (SPEC §6, mean measured trace) base <b>{:.3} %</b> → \
+        "<h3>Verdict</h3><p>Cause: {cause}.</p><p>{}</p><p>NMSE (SPEC §6, mean measured trace) base <b>{:.3} %</b> → \
          extended <b>{:.3} %</b> (ratio {:.1}). Per trace: {:.3} % → {:.3} %.</p>",
+        esc(&out.verdict_text()),
         out.base.nmse_pct,
         out.chosen.nmse_pct,
         out.base.nmse_pct / out.chosen.nmse_pct,

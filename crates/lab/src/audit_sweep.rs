@@ -136,7 +136,7 @@ impl CaseResult {
             self.truth.iter().map(|(e, v)| format!("{e}={v:.4}")).collect::<Vec<_>>().join("+")
         };
         let found = if self.outcome.cause_effects.is_empty() {
-            "none".to_owned()
+            self.outcome.cause.clone()
         } else {
             self.outcome.cause_effects.iter().map(|(e, v, _)| format!("{e}={v:.4}")).collect::<Vec<_>>().join("+")
         };
@@ -164,7 +164,8 @@ pub fn check_outcome(truth: &[(Mechanism, f64)], outcome: AuditOutcome) -> CaseR
     names.sort();
     let mut want: Vec<Mechanism> = truth.iter().map(|e| e.0).collect();
     want.sort();
-    let name_ok = names == want;
+    // A clean case must be called `none`, not `unexplained`.
+    let name_ok = names == want && (!truth.is_empty() || outcome.cause == "none");
     let magnitude_ok = name_ok
         && truth
             .iter()

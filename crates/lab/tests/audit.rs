@@ -157,3 +157,31 @@ fn a_sensor_offset_is_found_whatever_the_orifice() {
         assert!((out.magnitude() - 0.1).abs() <= 0.02, "orifice {orifice_mm} mm: {}", out.magnitude());
     }
 }
+
+/// Releases of a second plant written from the physics by someone who did not read this code
+/// (`tests/data/independent`): a clean release is `none` at the noise floor, and effects no
+/// mechanism of the library holds (a hunting regulator, a supply cut off and vented mid-fill)
+/// are `unexplained`, never `none` (issue 17: such releases were called "nothing is missing").
+#[test]
+fn effects_outside_the_library_are_unexplained_not_none() {
+    let dir = tempfile::tempdir().unwrap();
+    let independent = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/independent");
+    for (trace, want) in [
+        ("clean_normal_0000", "none"),
+        ("unfamiliar_regulator_hunting_00", "unexplained"),
+        ("unfamiliar_supply_dropout_vent_00", "unexplained"),
+    ] {
+        let set = dir.path().join(trace);
+        std::fs::create_dir_all(&set).unwrap();
+        std::fs::copy(independent.join(format!("{trace}.csv")), set.join("r.csv")).unwrap();
+        std::fs::write(set.join("manifest.csv"), "file,label,locomotive,split\nr.csv,normal,indep,test\n").unwrap();
+        let (out, skipped) = audit_dir(&set).expect("audit");
+        assert!(skipped.is_empty(), "{skipped}");
+        eprintln!("{trace}: {}", out.verdict_text());
+        assert_eq!(out.cause, want, "{trace}: {}", out.verdict_text());
+        assert_eq!(out.to_json()["cause"], want);
+        if want == "unexplained" {
+            assert!(out.residual_to_noise.0 > 2.0 * pbm_lab::audit::NOISE_FLOOR_RATIO, "{trace}");
+        }
+    }
+}
