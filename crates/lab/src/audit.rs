@@ -24,8 +24,8 @@
 //!    other key is a warning (stderr and the JSON's `warnings`) and is not used, so a
 //!    `# sensor_supply_v: 5` is never read as a 5 bar supply. A trace that is **no release** is
 //!    refused with its reason (see [`load_dataset`]): shorter than [`MIN_SAMPLES`], a sensor
-//!    fault that destroys the signal ([`signal_destroying_fault`]), or no pressure rise of
-//!    [`MIN_RISE_BAR`]. Releases of one configuration have the same noise-free
+//!    fault that destroys the signal ([`signal_destroying_fault`], [`refuses`]), or too little
+//!    pressure rise ([`required_rise_bar`], [`MIN_RISE_BAR`]). Releases of one configuration have the same noise-free
 //!    response, so each group is fitted through its *mean* trace (noise σ/√n). The noise σ of
 //!    every trace is estimated from the data (MAD of second differences), never assumed.
 //! 2. **Base fit**: the fixed-point core twin ([`pbm::Twin`], ≈ 1 ms per 60 s release) with six
@@ -242,9 +242,9 @@ pub const MIN_SAMPLES: usize = 200;
 /// what the twin of its documented configuration rises over the same time where that is less
 /// ([`required_rise_bar`]), but never less than [`MIN_RISE_FLOOR_BAR`]. A healthy release fills
 /// the chamber towards the supply (3.5–7.2 bar g over every documented regulator, SPEC §4):
-/// 1 bar is far below it and 30× above the level noise of [`pressure_rise_bar`] with a noisier
-/// transducer than the one the plausibility checks accept; white noise, a dead channel or a
-/// vented chamber rises ≈ 0. The relative part keeps a documented faulty brake auditable
+/// 1 bar is far below it, and more than 10× what noise fakes in [`pressure_rise_bar`] (below
+/// 0.1 bar even at 0.04 bar σ, 4× the specified transducer noise, where the core's `noisy` check
+/// begins); white noise, a dead channel or a vented chamber rises ≈ 0. The relative part keeps a documented faulty brake auditable
 /// (`# leak_mm: 1.2` with `# orifice_mm: 0.35` rises ≈ 0.05 bar); a release that rises less
 /// than half of its documented configuration is no release of that configuration (a heavy
 /// leak that was not documented: the audit's premise is the documented brake).
@@ -285,22 +285,37 @@ pub fn required_rise_bar(config: &TwinParams, samples: usize) -> (f64, f64) {
 
 /// The first sensor fault that destroys the signal, as the core's own checks see it: the trace
 /// replayed through the monitor pipeline ([`crate::replay::replay_trace_with_diagnosis`]), every
-/// sample's range check and latched plausibility check (`MonitorStep::sensor`). Returns the
-/// sample index and the fault.
-///
-/// Every [`SensorFault`] kind counts except [`SensorFault::ImplausibleLevel`]: that check fires on
-/// a zero offset at the release command (0.05 bar below atmosphere) or a reading above every
-/// regulator setting (a gain error), which is exactly what the audit's `sensor_offset` and
-/// `sensor_gain` mechanisms describe and must still find. The other kinds (open and short
-/// circuit, dead, frozen, noisy, spikes, dropouts, lost resolution, clipped, impossible rate)
-/// leave no signal the twin could be fitted to; `sensor_lag` (a first-order transducer) trips
-/// none of them.
+/// sample's range check and latched plausibility check (`MonitorStep::sensor`), kept when
+/// [`refuses`] says so. Returns the sample index and the fault.
 pub fn signal_destroying_fault(trace: &pbm_io::trace::Trace) -> Result<Option<(usize, SensorFault)>> {
+    let raw_adc = matches!(trace.samples, pbm_io::trace::Samples::Adc(_));
     let (samples, _) = crate::replay::replay_trace_with_diagnosis(trace)?;
-    Ok(samples
-        .iter()
-        .enumerate()
-        .find_map(|(i, s)| s.step.sensor.filter(|&f| f != SensorFault::ImplausibleLevel).map(|f| (i, f))))
+    Ok(samples.iter().enumerate().find_map(|(i, s)| s.step.sensor.filter(|&f| refuses(f, raw_adc)).map(|f| (i, f))))
+}
+
+/// Does the audit refuse a trace on which the core found `fault`? `raw_adc`: the trace holds raw
+/// ADC codes (`t_s,adc`), not pressures (`t_s,p_bar`).
+///
+/// Never for [`SensorFault::ImplausibleLevel`]: that check fires on a zero offset at the release
+/// command (0.05 bar below atmosphere) or a reading above every regulator setting (a gain
+/// error), which is exactly what the audit's `sensor_offset` and `sensor_gain` mechanisms
+/// describe and must still find (`sensor_lag`, a first-order transducer, trips no check). The
+/// other kinds leave no signal the twin could be fitted to: open and short circuit, dropouts,
+/// noisy, spikes, impossible rate always; dead, frozen, lost resolution and clipped only on raw
+/// ADC codes, because they are statistics of the transducer's noise on the codes, and a
+/// `p_bar` trace may be noise-free (`host-sim simulate`), whose plateau repeats one code. A dead
+/// `p_bar` channel is still refused, by its missing pressure rise.
+pub fn refuses(fault: SensorFault, raw_adc: bool) -> bool {
+    match fault {
+        SensorFault::ImplausibleLevel => false,
+        SensorFault::Dead | SensorFault::Frozen | SensorFault::LostResolution | SensorFault::Clipped => raw_adc,
+        SensorFault::OpenCircuit
+        | SensorFault::ShortCircuit
+        | SensorFault::Noisy
+        | SensorFault::Spikes
+        | SensorFault::Dropouts
+        | SensorFault::ImpossibleRate => true,
+    }
 }
 
 /// Reads a SPEC §7 data set for the audit; a trace that cannot be used (unreadable, not at

@@ -202,3 +202,23 @@ fn audit_of_flat_data_fails_instead_of_reporting_nan() {
     let err = audit(&data, AuditOptions { pairs: false, ..AuditOptions::default() }).expect_err("no verdict");
     assert!(format!("{err:#}").contains("non-finite"), "{err:#}");
 }
+
+/// A noise-free `p_bar` release (`host-sim simulate`) repeats one code on its plateau: that is
+/// no frozen transducer, so only raw ADC traces are judged by the noise statistics.
+#[test]
+fn noise_free_pressure_trace_is_not_a_frozen_sensor() {
+    use pbm::sensor::SensorFault;
+    use pbm_lab::audit::{refuses, twin_trace};
+    let tmp = tempfile::tempdir().unwrap();
+    let (p, _) = twin_trace(&TwinParams::nominal(), 3000).unwrap();
+    let mut s = "# source: simulated release\nt_s,p_bar\n".to_owned();
+    for (i, v) in p.iter().enumerate() {
+        let _ = writeln!(s, "{:.2},{v:.6}", i as f64 * 0.01);
+    }
+    let dir = data_set(tmp.path(), &[("sim.csv", s)]);
+    let (data, skipped) = load_dataset(&dir).expect("a release");
+    assert!(skipped.is_empty() && data.warnings.is_empty(), "{skipped}");
+    assert!(!refuses(SensorFault::ImplausibleLevel, true));
+    assert!(refuses(SensorFault::Frozen, true) && !refuses(SensorFault::Frozen, false));
+    assert!(refuses(SensorFault::OpenCircuit, false));
+}
