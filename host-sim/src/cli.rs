@@ -222,7 +222,7 @@ impl TryFrom<GenerateArgs> for GenerateOptions {
 pub struct AuditArgs {
     /// Data set directory (manifest.csv + traces) of releases of one locomotive.
     path: PathBuf,
-    /// Write the verdict as JSON.
+    /// Write the verdict as JSON (with a `warnings` array: unknown metadata keys).
     #[arg(long)]
     json: Option<PathBuf>,
     /// Write residual and comparison plots (SVG) into this directory.

@@ -226,3 +226,77 @@ fn effect_help_lists_every_mechanism_with_its_unit() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("warp_drive"));
 }
+
+/// A data set of the small set's `normal` releases (one per locomotive), the first with an
+/// unknown metadata key, plus whatever `extra` adds as `(file, text)`.
+fn normal_set(root: &Path, extra: &[(&str, String)]) -> PathBuf {
+    let dir = root.join("normal");
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut manifest = "file,label,locomotive,split\n".to_owned();
+    for (k, src) in ["traces/train/normal_0000.csv", "traces/train/normal_0001.csv"].into_iter().enumerate() {
+        let text = std::fs::read_to_string(small().join(src)).unwrap();
+        let text = if k == 0 { format!("# sensor_supply_v: 5\n{text}") } else { text };
+        std::fs::write(dir.join(format!("n{k}.csv")), text).unwrap();
+        manifest.push_str(&format!("n{k}.csv,normal,loco-01,train\n"));
+    }
+    for (name, text) in extra {
+        std::fs::write(dir.join(name), text).unwrap();
+        manifest.push_str(&format!("{name},normal,loco-01,train\n"));
+    }
+    std::fs::write(dir.join("manifest.csv"), manifest).unwrap();
+    dir
+}
+
+#[test]
+fn audit_refuses_what_is_no_release_and_warns_about_unknown_metadata() {
+    let tmp = tempfile::tempdir().unwrap();
+    // White noise around 0 bar, a dead channel: nothing to audit, exit 1 with the reasons.
+    let only_bad = tmp.path().join("bad");
+    std::fs::create_dir_all(&only_bad).unwrap();
+    let noise: String = (0..1500).map(|i| format!("{:.2},{}\n", f64::from(i) * 0.01, 410 + (i * 7919) % 5)).collect();
+    std::fs::write(only_bad.join("noise.csv"), format!("t_s,adc\n{noise}")).unwrap();
+    let dead: String = (0..1500).map(|i| format!("{:.2},2000\n", f64::from(i) * 0.01)).collect();
+    std::fs::write(only_bad.join("dead.csv"), format!("t_s,adc\n{dead}")).unwrap();
+    std::fs::write(
+        only_bad.join("manifest.csv"),
+        "file,label,locomotive,split\nnoise.csv,normal,l,train\ndead.csv,normal,l,train\n",
+    )
+    .unwrap();
+    let out = host_sim(&[os("audit"), only_bad.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("no usable release to audit"), "{stderr}");
+    assert!(stderr.contains("noise.csv") && stderr.contains("no release to audit: the pressure rises"), "{stderr}");
+    assert!(stderr.contains("dead.csv") && stderr.contains("sensor fault `dead`"), "{stderr}");
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("cause:"));
+
+    // Real releases, one with `# sensor_supply_v: 5`, and an all-zero ADC trace: the audit runs,
+    // warns on stderr and in the JSON, skips the zero trace (exit 3).
+    let zero: String = (0..1500).map(|i| format!("{:.2},0\n", f64::from(i) * 0.01)).collect();
+    let dir = normal_set(tmp.path(), &[("zero.csv", format!("t_s,adc\n{zero}"))]);
+    let json = tmp.path().join("audit.json");
+    let out = host_sim(&[os("audit"), dir.as_os_str(), os("--json"), json.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{stderr}");
+    assert!(stderr.contains("warning: n0.csv: metadata key `sensor_supply_v` is not a configuration key"), "{stderr}");
+    assert!(stderr.contains("zero.csv") && stderr.contains("sensor fault `open_circuit`"), "{stderr}");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("cause:") && !stdout.contains("NaN") && !stdout.contains("inf"), "{stdout}");
+    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let warnings = v["warnings"].as_array().expect("warnings array");
+    assert_eq!(warnings.len(), 1, "{v}");
+    assert!(warnings[0].as_str().unwrap().contains("sensor_supply_v"));
+}
+
+#[test]
+fn fit_refuses_a_trace_too_short_to_fit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let one = tmp.path().join("one.csv");
+    std::fs::write(&one, "t_s,adc\n0.00,410\n").unwrap();
+    let out = host_sim(&[os("fit"), one.as_os_str()]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("one.csv") && stderr.contains("too short to fit: 1 sample(s)"), "{stderr}");
+    assert!(!stdout.contains("NaN") && !stderr.contains("NaN"), "{stdout}{stderr}");
+}

@@ -17,9 +17,15 @@
 //! # Method
 //!
 //! 1. **Data**: every trace of the manifest, converted to bar g. Traces are grouped by their
-//!    documented configuration (`# supply_bar_g`, `# orifice_mm`, `# leak_mm` metadata or any
-//!    key containing `supply`, `orifice` or `leak` but not `laminar`/`effect`; undocumented
-//!    values are the nominal brake). Releases of one configuration have the same noise-free
+//!    documented configuration: the metadata keys [`CONFIG_KEYS`] (`# supply_bar_g`,
+//!    `# orifice_mm`, `# leak_mm`, and `# supply_bar` as `host-sim simulate` writes it), matched
+//!    exactly; undocumented values are the nominal brake. The keys the project writes for
+//!    information ([`INFO_KEYS`]: `label`, `locomotive`, `source`, …) are ignored silently, any
+//!    other key is a warning (stderr and the JSON's `warnings`) and is not used, so a
+//!    `# sensor_supply_v: 5` is never read as a 5 bar supply. A trace that is **no release** is
+//!    refused with its reason (see [`load_dataset`]): shorter than [`MIN_SAMPLES`], a sensor
+//!    fault that destroys the signal ([`signal_destroying_fault`], [`refuses`]), or too little
+//!    pressure rise ([`required_rise_bar`], [`MIN_RISE_BAR`]). Releases of one configuration have the same noise-free
 //!    response, so each group is fitted through its *mean* trace (noise σ/√n). The noise σ of
 //!    every trace is estimated from the data (MAD of second differences), never assumed.
 //! 2. **Base fit**: the fixed-point core twin ([`pbm::Twin`], ≈ 1 ms per 60 s release) with six
@@ -72,6 +78,7 @@
 use anyhow::{bail, Context, Result};
 use pbm::mechanism::Extensions;
 use pbm::mechanism::Mechanism;
+use pbm::sensor::SensorFault;
 use pbm::twin::SAMPLE_PERIOD_S;
 use pbm::{BarG, Meters, Twin, TwinParams};
 use pbm_io::dataset::{Dataset, ManifestRow};
@@ -125,6 +132,8 @@ pub struct AuditData {
     pub source: String,
     /// Configuration groups.
     pub groups: Vec<Group>,
+    /// Warnings about the input (unknown metadata keys), one line each, naming file and key.
+    pub warnings: Vec<String>,
 }
 
 /// Robust white-noise σ of a 100 Hz trace: MAD of second differences / sqrt(6).
@@ -150,28 +159,40 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-/// The documented configuration in trace metadata (keys matched loosely, see module docs).
-pub fn config_from_meta(meta: &[(String, String)]) -> Result<TwinParams> {
+/// Metadata keys of the documented configuration, matched exactly: supply (bar g; `supply_bar`
+/// is what `host-sim simulate` writes), release orifice and leak diameters (mm).
+pub const CONFIG_KEYS: [&str; 4] = ["supply_bar_g", "supply_bar", "orifice_mm", "leak_mm"];
+
+/// Metadata keys the project writes or documents for information (`host-sim generate`,
+/// `host-sim simulate`, the test data sets): accepted silently and not used by the audit.
+pub const INFO_KEYS: [&str; 9] =
+    ["label", "locomotive", "split", "seed", "trace", "source", "sensor_fault", "truth", "note"];
+
+/// The documented configuration in trace metadata and the keys that are neither configuration
+/// ([`CONFIG_KEYS`]) nor information ([`INFO_KEYS`]): exact, case-sensitive matches; an unknown
+/// key is returned (for a warning), never used. A configuration value that is no finite number,
+/// or a configuration out of the twin's range, is an error.
+pub fn config_from_meta(meta: &[(String, String)]) -> Result<(TwinParams, Vec<String>)> {
     let mut p = TwinParams::nominal();
+    let mut unknown = Vec::new();
     for (key, value) in meta {
-        let k = key.to_ascii_lowercase();
         let number = || -> Result<f64> {
             let v = value.split_whitespace().next().unwrap_or("");
             v.parse::<f64>().ok().filter(|x| x.is_finite()).with_context(|| format!("metadata `{key}: {value}`"))
         };
-        if k.contains("laminar") || k.contains("effect") {
-            continue;
-        }
-        if k.contains("supply") {
-            p.supply = BarG(number()?);
-        } else if k.contains("orifice") {
-            p.orifice = Meters::from_mm(number()?);
-        } else if k.contains("leak") {
-            p.leak = Meters::from_mm(number()?);
+        match key.as_str() {
+            "supply_bar_g" | "supply_bar" => p.supply = BarG(number()?),
+            "orifice_mm" => p.orifice = Meters::from_mm(number()?),
+            "leak_mm" => p.leak = Meters::from_mm(number()?),
+            k if INFO_KEYS.contains(&k) => {}
+            _ => unknown.push(key.clone()),
         }
     }
+    if meta.iter().any(|(k, _)| k == "supply_bar_g") && meta.iter().any(|(k, _)| k == "supply_bar") {
+        bail!("metadata documents the supply twice (`supply_bar_g` and `supply_bar`)");
+    }
     p.validate().map_err(|e| anyhow::anyhow!("documented configuration out of range: {e}"))?;
-    Ok(p)
+    Ok((p, unknown))
 }
 
 /// Builds groups from `(file, config, pressure)` traces.
@@ -211,33 +232,129 @@ pub fn data_from_traces(source: &str, traces: Vec<(String, TwinParams, Vec<f64>)
         let mut s = g.sigma_traces.clone();
         g.sigma_mean = (median(&mut s) / k.sqrt()).max(1e-4);
     }
-    Ok(AuditData { source: source.to_owned(), groups })
+    Ok(AuditData { source: source.to_owned(), groups, warnings: Vec::new() })
 }
 
 /// Fewest samples of a release the audit uses (2 s at 100 Hz).
 pub const MIN_SAMPLES: usize = 200;
 
+/// A release must raise the pressure above its start by at least this much, bar, or by half of
+/// what the twin of its documented configuration rises over the same time where that is less
+/// ([`required_rise_bar`]), but never less than [`MIN_RISE_FLOOR_BAR`]. A healthy release fills
+/// the chamber towards the supply (3.5–7.2 bar g over every documented regulator, SPEC §4):
+/// 1 bar is far below it, and more than 10× what noise fakes in [`pressure_rise_bar`] (below
+/// 0.1 bar even at 0.04 bar σ, 4× the specified transducer noise, where the core's `noisy` check
+/// begins); white noise, a dead channel or a vented chamber rises ≈ 0. The relative part keeps a documented faulty brake auditable
+/// (`# leak_mm: 1.2` with `# orifice_mm: 0.35` rises ≈ 0.05 bar); a release that rises less
+/// than half of its documented configuration is no release of that configuration (a heavy
+/// leak that was not documented: the audit's premise is the documented brake).
+pub const MIN_RISE_BAR: f64 = 1.0;
+/// Smallest rise ever accepted, bar: below it the pressure never enters the SPEC §6 NMSE domain
+/// (> 0.2 bar g) by much, and noise can fake it.
+pub const MIN_RISE_FLOOR_BAR: f64 = 0.1;
+/// Samples whose median is the start level of [`pressure_rise_bar`] (0.1 s).
+pub const RISE_START_SAMPLES: usize = 10;
+/// Block length of the top level of [`pressure_rise_bar`] (0.5 s).
+pub const RISE_BLOCK_SAMPLES: usize = 50;
+
+/// Rise of a trace's pressure above its start, bar: the largest median of consecutive 0.5 s
+/// blocks minus the median of the first 0.1 s (non-finite samples are left out; 0 when nothing
+/// is left).
+pub fn pressure_rise_bar(p: &[f64]) -> f64 {
+    let finite_median = |v: &[f64]| {
+        let mut f: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+        (!f.is_empty()).then(|| median(&mut f))
+    };
+    let Some(start) = finite_median(&p[..p.len().min(RISE_START_SAMPLES)]) else {
+        return 0.0;
+    };
+    let top = p.chunks(RISE_BLOCK_SAMPLES).filter_map(finite_median).fold(f64::NEG_INFINITY, f64::max);
+    if top.is_finite() {
+        (top - start).max(0.0)
+    } else {
+        0.0
+    }
+}
+
+/// The rise a trace of `samples` samples at the documented `config` must show, bar: `min(`
+/// [`MIN_RISE_BAR`]`, ½ × the twin's rise)`, at least [`MIN_RISE_FLOOR_BAR`]; with the twin's rise.
+pub fn required_rise_bar(config: &TwinParams, samples: usize) -> (f64, f64) {
+    let twin_rise = twin_trace(config, samples).map_or(f64::INFINITY, |(p, _)| pressure_rise_bar(&p));
+    ((0.5 * twin_rise).clamp(MIN_RISE_FLOOR_BAR, MIN_RISE_BAR), twin_rise)
+}
+
+/// The first sensor fault that destroys the signal, as the core's own checks see it: the trace
+/// replayed through the monitor pipeline ([`crate::replay::replay_trace_with_diagnosis`]), every
+/// sample's range check and latched plausibility check (`MonitorStep::sensor`), kept when
+/// [`refuses`] says so. Returns the sample index and the fault.
+pub fn signal_destroying_fault(trace: &pbm_io::trace::Trace) -> Result<Option<(usize, SensorFault)>> {
+    let raw_adc = matches!(trace.samples, pbm_io::trace::Samples::Adc(_));
+    let (samples, _) = crate::replay::replay_trace_with_diagnosis(trace)?;
+    Ok(samples.iter().enumerate().find_map(|(i, s)| s.step.sensor.filter(|&f| refuses(f, raw_adc)).map(|f| (i, f))))
+}
+
+/// Does the audit refuse a trace on which the core found `fault`? `raw_adc`: the trace holds raw
+/// ADC codes (`t_s,adc`), not pressures (`t_s,p_bar`).
+///
+/// Never for [`SensorFault::ImplausibleLevel`]: that check fires on a zero offset at the release
+/// command (0.05 bar below atmosphere) or a reading above every regulator setting (a gain
+/// error), which is exactly what the audit's `sensor_offset` and `sensor_gain` mechanisms
+/// describe and must still find (`sensor_lag`, a first-order transducer, trips no check). The
+/// other kinds leave no signal the twin could be fitted to: open and short circuit, dropouts,
+/// noisy, spikes, impossible rate always; dead, frozen, lost resolution and clipped only on raw
+/// ADC codes, because they are statistics of the transducer's noise on the codes, and a
+/// `p_bar` trace may be noise-free (`host-sim simulate`), whose plateau repeats one code. A dead
+/// `p_bar` channel is still refused, by its missing pressure rise.
+pub fn refuses(fault: SensorFault, raw_adc: bool) -> bool {
+    match fault {
+        SensorFault::ImplausibleLevel => false,
+        SensorFault::Dead | SensorFault::Frozen | SensorFault::LostResolution | SensorFault::Clipped => raw_adc,
+        SensorFault::OpenCircuit
+        | SensorFault::ShortCircuit
+        | SensorFault::Noisy
+        | SensorFault::Spikes
+        | SensorFault::Dropouts
+        | SensorFault::ImpossibleRate => true,
+    }
+}
+
 /// Reads a SPEC §7 data set for the audit; a trace that cannot be used (unreadable, not at
 /// 100 Hz, not starting at the release command, shorter than [`MIN_SAMPLES`], a documented
-/// configuration out of range) is skipped with its reason, and the others are audited.
+/// configuration out of range) or that is no release (a sensor fault that destroys the signal,
+/// see [`signal_destroying_fault`]; a pressure rise below [`required_rise_bar`]) is skipped with its
+/// reason, and the others are audited; none left is an error. Metadata keys that are neither
+/// configuration nor information are warnings in [`AuditData::warnings`].
 pub fn load_dataset(dir: &Path) -> Result<(AuditData, Skipped)> {
     let data = Dataset::open(dir)?;
     let mut traces = Vec::new();
+    let mut warnings = Vec::new();
     let mut skipped = Skipped::of(data.refused());
     for row in data.rows() {
         match audit_trace(&data, row) {
-            Ok((config, p)) => traces.push((row.file.clone(), config, p)),
+            Ok((config, p, unknown)) => {
+                warnings.extend(unknown.iter().map(|k| {
+                    format!(
+                        "{}: metadata key `{k}` is not a configuration key ({}); ignored",
+                        row.file,
+                        ["supply_bar_g", "orifice_mm", "leak_mm"].join(", ")
+                    )
+                }));
+                traces.push((row.file.clone(), config, p));
+            }
             Err(e) => skipped.push(e),
         }
     }
     if traces.is_empty() {
         bail!("{}: no usable release to audit\n{skipped}", dir.display());
     }
-    Ok((data_from_traces(&dir.display().to_string(), traces)?, skipped))
+    let mut audit_data = data_from_traces(&dir.display().to_string(), traces)?;
+    audit_data.warnings = warnings;
+    Ok((audit_data, skipped))
 }
 
-/// One data set trace as the audit uses it: its documented configuration and pressures.
-fn audit_trace(data: &Dataset, row: &ManifestRow) -> Result<(TwinParams, Vec<f64>), FileError> {
+/// One data set trace as the audit uses it: its documented configuration, pressures and the
+/// unknown metadata keys.
+fn audit_trace(data: &Dataset, row: &ManifestRow) -> Result<(TwinParams, Vec<f64>, Vec<String>), FileError> {
     let tr = data.read_trace(row)?;
     tr.check_sample_period(SAMPLE_PERIOD_S, 1e-3)?;
     let name = &tr.source;
@@ -247,9 +364,41 @@ fn audit_trace(data: &Dataset, row: &ManifestRow) -> Result<(TwinParams, Vec<f64
     if tr.t_s.len() < MIN_SAMPLES {
         return Err(FileError::new(name, 0, format!("only {} samples; the audit needs ≥ 2 s at 100 Hz", tr.t_s.len())));
     }
+    let (config, unknown) = config_from_meta(&tr.metadata).map_err(|e| FileError::new(name, 0, format!("{e:#}")))?;
+    match signal_destroying_fault(&tr) {
+        Err(e) => return Err(FileError::new(name, 0, format!("{e:#}"))),
+        Ok(Some((i, fault))) => {
+            return Err(FileError::new(
+                name,
+                tr.lines.get(i).copied().unwrap_or(0),
+                format!(
+                    "sensor fault `{}` at t = {:.2} s ({fault}): no release signal the audit can fit",
+                    fault.label(),
+                    tr.t_s[i]
+                ),
+            ))
+        }
+        Ok(None) => {}
+    }
     let p = tr.pressures_bar();
-    let config = config_from_meta(&tr.metadata).map_err(|e| FileError::new(name, 0, format!("{e:#}")))?;
-    Ok((config, p))
+    if p.iter().any(|v| !v.is_finite()) {
+        return Err(FileError::new(name, 0, "a pressure is NaN or infinite"));
+    }
+    let rise = pressure_rise_bar(&p);
+    let (required, twin_rise) = required_rise_bar(&config, p.len());
+    if rise < required {
+        return Err(FileError::new(
+            name,
+            0,
+            format!(
+                "no release to audit: the pressure rises {rise:.2} bar above its start, the audit needs ≥ \
+                 {required:.2} bar (the twin of the documented configuration, nominal where undocumented, \
+                 rises {twin_rise:.2} bar; document `# supply_bar_g`, `# orifice_mm`, `# leak_mm` of a \
+                 faulty brake)"
+            ),
+        ));
+    }
+    Ok((config, p, unknown))
 }
 
 /// The brake described by base vector `u` (each in [0, 1]) around the documented `config`.
@@ -982,6 +1131,8 @@ pub struct AuditOutcome {
     /// RMS of the base and the chosen model's residual in units of the noise σ of the mean
     /// release (1 = at the noise floor; see [`NOISE_FLOOR_RATIO`]).
     pub residual_to_noise: (f64, f64),
+    /// Warnings about the input ([`AuditData::warnings`]).
+    pub warnings: Vec<String>,
 }
 
 /// Largest RMS residual, in noise σ of the mean release, that a model may leave and still be
@@ -1199,11 +1350,29 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
             .collect();
         v.iter().sum::<f64>() / v.len().max(1) as f64
     };
+    let nmse_per_trace = (per_trace(&base_preds), per_trace(&chosen_preds));
+    // A verdict is only given on finite figures: a NaN or infinite NMSE, magnitude or
+    // uncertainty means the data are no release the twin can be fitted to.
+    let figures = [base.nmse_pct, chosen.nmse_pct, nmse_per_trace.0, nmse_per_trace.1]
+        .into_iter()
+        .chain(chosen.effects.iter().flat_map(|&(_, v, u)| [v, u]));
+    if figures.into_iter().any(|v| !v.is_finite()) || !base.rss.is_finite() || !chosen.rss.is_finite() {
+        bail!(
+            "{}: the fit gives non-finite figures (NMSE base {} %, {} {} %{}); the data are no release \
+             the twin can be fitted to (no pressure rise, or a pressure that never exceeds 0.2 bar g?)",
+            data.source,
+            base.nmse_pct,
+            chosen.name,
+            chosen.nmse_pct,
+            chosen.effects.iter().map(|(e, v, u)| format!(", {e} = {v} ± {u}")).collect::<String>()
+        );
+    }
     Ok(AuditOutcome {
         source: data.source.clone(),
+        warnings: data.warnings.clone(),
         cause,
         cause_effects: chosen.effects.clone(),
-        nmse_per_trace: (per_trace(&base_preds), per_trace(&chosen_preds)),
+        nmse_per_trace,
         base,
         chosen,
         ranking,
@@ -1229,7 +1398,8 @@ impl AuditOutcome {
     /// The `--json` document:
     /// `{"cause", "magnitude", "uncertainty", "magnitudes", "causes", "nmse_base_pct",
     /// "nmse_extended_pct", "nmse_ratio", "nmse_per_trace_base_pct", "nmse_per_trace_extended_pct",
-    /// "noise_sigma_bar", "ranking"}`.
+    /// "noise_sigma_bar", "ranking", "warnings"}`; `warnings` is an array of strings (unknown
+    /// metadata keys, [`AuditData::warnings`]), empty when there is nothing to say.
     ///
     /// - one mechanism: `cause` is its name, `magnitude` a number in its unit;
     /// - two: `cause` is `a+b` (names in [`Mechanism::ALL`] order, i.e. the issue's), `magnitude` and
@@ -1254,6 +1424,7 @@ impl AuditOutcome {
             "noise_floor": NOISE_FLOOR_RATIO,
         });
         doc["explains_all"] = serde_json::Value::Bool(self.explains_all());
+        doc["warnings"] = serde_json::json!(self.warnings);
         doc
     }
 

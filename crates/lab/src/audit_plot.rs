@@ -240,6 +240,9 @@ pub fn html_section(out: &AuditOutcome) -> Result<String> {
 pub fn run(path: &Path, a: &AuditRunOptions) -> Result<Skipped> {
     let start = std::time::Instant::now();
     let (data, skipped) = load_dataset(path)?;
+    for w in &data.warnings {
+        eprintln!("warning: {w}");
+    }
     let out = audit(&data, AuditOptions { pairs: a.pairs, ..AuditOptions::default() })?;
     print!("{}", out.summary());
     eprintln!(

@@ -157,9 +157,21 @@ pub fn pressures_from_adc(adc: &[u16]) -> Vec<Option<f64>> {
     adc.iter().map(|&c| pressure_from_adc(AdcCounts(c)).ok().map(|_| bar_from_adc(AdcCounts(c)).0)).collect()
 }
 
+/// Fewest samples of a release the fit accepts (2 s at 100 Hz, as the audit): a shorter trace
+/// shows too little of the release for four parameters, and its NMSE is undefined or meaningless.
+pub const MIN_FIT_SAMPLES: usize = 200;
+
 /// Fits `which` to a measured release (gauge bar per 100 Hz sample, `None` = no reading),
-/// starting from `base`, with at most `max_iters` Nelder–Mead iterations.
+/// starting from `base`, with at most `max_iters` Nelder–Mead iterations. A trace shorter than
+/// [`MIN_FIT_SAMPLES`] is refused, and so is one whose NMSE is undefined (no sample above
+/// 0.2 bar g): a fit never reports a NaN NMSE.
 pub fn fit_trace(measured: &[Option<f64>], base: &TwinParams, which: FitParams, max_iters: u64) -> Result<FitResult> {
+    if measured.len() < MIN_FIT_SAMPLES {
+        bail!(
+            "too short to fit: {} sample(s); a fit needs ≥ {MIN_FIT_SAMPLES} (2 s of release at 100 Hz)",
+            measured.len()
+        );
+    }
     if measured.iter().all(Option::is_none) {
         bail!("the trace has no valid pressure sample");
     }
@@ -174,14 +186,11 @@ pub fn fit_trace(measured: &[Option<f64>], base: &TwinParams, which: FitParams, 
     let model = simulate_twin(&params, measured.len()).map_err(|e| anyhow::anyhow!("fitted brake invalid: {e}"))?;
     let (m, q): (Vec<f64>, Vec<f64>) = measured.iter().zip(&model).filter_map(|(m, q)| m.map(|m| (m, *q))).unzip();
     let evaluations = evaluations.load(std::sync::atomic::Ordering::Relaxed);
-    Ok(FitResult {
-        which,
-        values: which.values(&params),
-        params,
-        sse: state.get_best_cost(),
-        nmse_pct: pbm::metrics::nmse_pct(&m, &q),
-        evaluations,
-    })
+    let nmse_pct = pbm::metrics::nmse_pct(&m, &q).filter(|v| v.is_finite());
+    if nmse_pct.is_none() {
+        bail!("no NMSE: no valid sample above 0.2 bar g (no pressure rise: is this a release?)");
+    }
+    Ok(FitResult { which, values: which.values(&params), params, sse: state.get_best_cost(), nmse_pct, evaluations })
 }
 
 /// Measured pressures of a trace (`None` where an ADC count is a sensor fault).
@@ -212,7 +221,8 @@ impl Default for FitOptions {
 }
 
 /// Fits every selected trace under `input` (a trace file or a data set directory): one CSV row
-/// per trace on stdout, a summary of the NMSE on stderr; returns the traces skipped.
+/// per trace on stdout, a summary of the NMSE on stderr; returns the traces skipped (too short,
+/// no NMSE, unreadable: see [`fit_trace`]); fails when no selected trace could be fitted.
 pub fn run(input: &Path, a: &FitOptions) -> Result<Skipped> {
     use rayon::prelude::*;
     let base = TwinParams::nominal();
@@ -252,6 +262,9 @@ pub fn run(input: &Path, a: &FitOptions) -> Result<Skipped> {
         }
     }
     out.flush()?;
+    if nmse.is_empty() && !items.is_empty() {
+        bail!("no trace could be fitted\n{skipped}");
+    }
     if !nmse.is_empty() {
         nmse.sort_by(f64::total_cmp);
         let mean = nmse.iter().sum::<f64>() / nmse.len() as f64;

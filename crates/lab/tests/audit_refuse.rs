@@ -1,0 +1,224 @@
+//! Inputs that are no release are refused by the audit with a clear reason (issue 17, item 3):
+//! no pressure rise, a sensor fault that destroys the signal, NaN, too short; metadata keys match
+//! exactly and an unknown key is a warning; the audit never reports non-finite figures. The
+//! sensor mechanisms the audit must find (offset, gain, lag) are *not* refused.
+
+use pbm::mechanism::{Extensions, Mechanism};
+use pbm::TwinParams;
+use pbm_lab::audit::{audit, config_from_meta, data_from_traces, load_dataset, AuditOptions, MIN_SAMPLES};
+use pbm_lab::generate::{generate, GenerateOptions, SplitMode};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Writes a data set of `(file, text)` traces (one locomotive, all `normal`).
+fn data_set(dir: &Path, traces: &[(&str, String)]) -> PathBuf {
+    let mut manifest = "file,label,locomotive,split\n".to_owned();
+    for (name, text) in traces {
+        std::fs::write(dir.join(name), text).unwrap();
+        let _ = writeln!(manifest, "{name},normal,loco-01,train");
+    }
+    std::fs::write(dir.join("manifest.csv"), manifest).unwrap();
+    dir.to_path_buf()
+}
+
+/// A 20 s ADC trace from `adc(i)`.
+fn adc_trace(meta: &str, adc: impl Fn(usize) -> u16) -> String {
+    let mut s = format!("{meta}t_s,adc\n");
+    for i in 0..2000 {
+        let _ = writeln!(s, "{:.2},{}", i as f64 * 0.01, adc(i));
+    }
+    s
+}
+
+/// Deterministic pseudo-random white noise in [−1, 1] (no RNG crate needed).
+fn noise(i: usize) -> f64 {
+    let x = (i as u64).wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+    ((x >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+}
+
+/// One locomotive's healthy releases from the generator (with an optional hidden mechanism).
+fn generated(dir: &Path, per_class: usize, seed: u64, effects: Extensions) -> PathBuf {
+    let data = dir.join("gen");
+    let mut g = GenerateOptions::new(data.clone());
+    g.locomotives = 1;
+    g.split = SplitMode::Shared;
+    g.classes = vec![pbm::FaultClass::Normal];
+    g.per_class = per_class;
+    g.test_per_class = 0;
+    g.seed = seed;
+    g.effects = effects;
+    generate(&g, false).expect("generate");
+    data
+}
+
+fn no_usable_release(dir: &Path) -> String {
+    let err = load_dataset(dir).expect_err("nothing to audit");
+    let msg = format!("{err:#}");
+    assert!(msg.contains("no usable release to audit"), "{msg}");
+    msg
+}
+
+#[test]
+fn white_noise_around_zero_is_no_release() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut s = "t_s,p_bar\n".to_owned();
+    for i in 0..3000 {
+        let _ = writeln!(s, "{:.2},{:.4}", i as f64 * 0.01, 0.01 * noise(i));
+    }
+    let dir = data_set(tmp.path(), &[("noise.csv", s)]);
+    let msg = no_usable_release(&dir);
+    assert!(msg.contains("noise.csv") && msg.contains("no release to audit: the pressure rises 0.0"), "{msg}");
+}
+
+#[test]
+fn all_zero_and_constant_adc_are_sensor_faults() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = data_set(tmp.path(), &[("zero.csv", adc_trace("", |_| 0)), ("const.csv", adc_trace("", |_| 2000))]);
+    let msg = no_usable_release(&dir);
+    assert!(msg.contains("zero.csv:") && msg.contains("sensor fault `open_circuit` at t = 0.00 s"), "{msg}");
+    assert!(msg.contains("const.csv:") && msg.contains("sensor fault `dead`"), "{msg}");
+}
+
+#[test]
+fn nan_and_too_short_traces_are_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let nan = "t_s,p_bar\n0.00,0.0\n0.01,NaN\n0.02,0.1\n".to_owned();
+    let one = "t_s,adc\n0.00,410\n".to_owned();
+    let dir = data_set(tmp.path(), &[("nan.csv", nan), ("one.csv", one)]);
+    let msg = no_usable_release(&dir);
+    assert!(msg.contains("nan.csv:3") && msg.contains("NaN"), "{msg}");
+    assert!(msg.contains("one.csv: only 1 samples; the audit needs ≥ 2 s"), "{msg}");
+    assert_eq!(MIN_SAMPLES, 200);
+}
+
+#[test]
+fn metadata_keys_match_exactly_and_unknown_keys_are_warnings() {
+    let meta = |kv: &[(&str, &str)]| kv.iter().map(|(k, v)| ((*k).to_owned(), (*v).to_owned())).collect::<Vec<_>>();
+    let nominal = TwinParams::nominal();
+    // A 5 V sensor supply is no 5 bar brake supply.
+    let (p, unknown) = config_from_meta(&meta(&[("sensor_supply_v", "5"), ("label", "normal")])).unwrap();
+    assert_eq!(p, nominal);
+    assert_eq!(unknown, ["sensor_supply_v"]);
+    // The documented keys are used.
+    let (p, unknown) = config_from_meta(&meta(&[("supply_bar_g", "6.0"), ("orifice_mm", "0.8")])).unwrap();
+    assert!(unknown.is_empty());
+    assert_eq!(p.supply.0, 6.0);
+    assert!((p.orifice.mm() - 0.8).abs() < 1e-12);
+    assert_eq!(p.leak, nominal.leak);
+    // Near misses are neither used nor silent.
+    let (p, unknown) =
+        config_from_meta(&meta(&[("Supply_bar_g", "6.0"), ("laminar_leak_mm", "1"), ("note", "x")])).unwrap();
+    assert_eq!(p, nominal);
+    assert_eq!(unknown, ["Supply_bar_g", "laminar_leak_mm"]);
+    // Everything the generator writes is information.
+    let info = ["label", "locomotive", "split", "seed", "trace", "source", "sensor_fault", "truth", "note"];
+    let (_, unknown) = config_from_meta(&meta(&info.map(|k| (k, "1")))).unwrap();
+    assert!(unknown.is_empty(), "{unknown:?}");
+    // A documented key with no number is an error.
+    assert!(config_from_meta(&meta(&[("supply_bar_g", "high")])).is_err());
+}
+
+/// Healthy releases with one open-circuit channel, one `# sensor_supply_v: 5` and one
+/// `# supply_bar_g: 6.0` trace: the open circuit is skipped, the unknown key is a warning in the
+/// loaded data and the JSON, the supply stays nominal for it and is 6 bar for the documented one.
+#[test]
+fn open_circuit_is_skipped_and_unknown_key_is_a_warning_in_the_json() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = generated(tmp.path(), 6, 11, Extensions::NONE);
+    let manifest = std::fs::read_to_string(dir.join("manifest.csv")).unwrap();
+    let files: Vec<String> = manifest.lines().skip(1).map(|l| l.split(',').next().unwrap().to_owned()).collect();
+    // Open circuit from 10 s on.
+    let text = std::fs::read_to_string(dir.join(&files[0])).unwrap();
+    let mut open = String::new();
+    for line in text.lines() {
+        match line.split_once(',') {
+            Some((t, _)) if t.parse::<f64>().is_ok_and(|t| t >= 10.0) => {
+                let _ = writeln!(open, "{t},0");
+            }
+            _ => {
+                let _ = writeln!(open, "{line}");
+            }
+        }
+    }
+    std::fs::write(dir.join(&files[0]), open).unwrap();
+    let text = std::fs::read_to_string(dir.join(&files[1])).unwrap();
+    std::fs::write(dir.join(&files[1]), format!("# sensor_supply_v: 5\n{text}")).unwrap();
+    let text = std::fs::read_to_string(dir.join(&files[2])).unwrap();
+    std::fs::write(dir.join(&files[2]), format!("# supply_bar_g: 6.0\n{text}")).unwrap();
+
+    let (data, skipped) = load_dataset(&dir).expect("load");
+    assert_eq!(skipped.len(), 1, "{skipped}");
+    let why = skipped.errors()[0].to_string();
+    assert!(why.contains(files[0].as_str()) && why.contains("sensor fault `open_circuit` at t = 10.00 s"), "{why}");
+    assert_eq!(data.warnings.len(), 1, "{:?}", data.warnings);
+    assert!(data.warnings[0].contains(files[1].as_str()) && data.warnings[0].contains("`sensor_supply_v`"));
+    let group_of = |f: &str| data.groups.iter().find(|g| g.files.iter().any(|x| x == f)).unwrap();
+    assert_eq!(group_of(&files[1]).config, TwinParams::nominal());
+    assert_eq!(group_of(&files[2]).config.supply.0, 6.0);
+    assert_eq!(data.groups.len(), 2);
+
+    // One audit run: the warning is in the outcome and the JSON; every figure is finite.
+    let only_nominal = pbm_lab::audit::AuditData {
+        groups: data.groups.iter().filter(|g| g.config == TwinParams::nominal()).cloned().collect(),
+        ..data.clone()
+    };
+    let out = audit(&only_nominal, AuditOptions { pairs: false, ..AuditOptions::default() }).expect("audit");
+    let json = out.to_json();
+    assert_eq!(json["warnings"].as_array().map(Vec::len), Some(1), "{json}");
+    assert!(json["warnings"][0].as_str().unwrap().contains("sensor_supply_v"));
+    assert!(out.base.nmse_pct.is_finite() && out.chosen.nmse_pct.is_finite());
+}
+
+/// Releases with the sensor mechanisms the audit must name, at the ends of their plausible
+/// ranges, are not refused by the plausibility screen (implausible level is not a refusal).
+#[test]
+fn sensor_offset_gain_and_lag_releases_are_not_refused() {
+    for (k, (m, v)) in [
+        (Mechanism::SensorOffset, -0.15),
+        (Mechanism::SensorOffset, 0.15),
+        (Mechanism::SensorGain, 0.95),
+        (Mechanism::SensorGain, 1.05),
+        (Mechanism::SensorLag, 0.4),
+        (Mechanism::SensorLag, 0.05),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = generated(tmp.path(), 3, 20 + k as u64, Extensions::NONE.with(m, v));
+        let (data, skipped) = load_dataset(&dir).expect("load");
+        assert!(skipped.is_empty(), "{m} = {v}: {skipped}");
+        assert_eq!(data.groups.iter().map(|g| g.files.len()).sum::<usize>(), 3);
+        assert!(data.warnings.is_empty(), "{:?}", data.warnings);
+    }
+}
+
+/// The audit itself (data built without the loader's screen) fails on data with no defined NMSE
+/// instead of naming a cause with NaN or infinite figures.
+#[test]
+fn audit_of_flat_data_fails_instead_of_reporting_nan() {
+    let traces = (0..3).map(|k| (format!("flat{k}.csv"), TwinParams::nominal(), vec![0.0; 1000])).collect();
+    let data = data_from_traces("flat", traces).unwrap();
+    let err = audit(&data, AuditOptions { pairs: false, ..AuditOptions::default() }).expect_err("no verdict");
+    assert!(format!("{err:#}").contains("non-finite"), "{err:#}");
+}
+
+/// A noise-free `p_bar` release (`host-sim simulate`) repeats one code on its plateau: that is
+/// no frozen transducer, so only raw ADC traces are judged by the noise statistics.
+#[test]
+fn noise_free_pressure_trace_is_not_a_frozen_sensor() {
+    use pbm::sensor::SensorFault;
+    use pbm_lab::audit::{refuses, twin_trace};
+    let tmp = tempfile::tempdir().unwrap();
+    let (p, _) = twin_trace(&TwinParams::nominal(), 3000).unwrap();
+    let mut s = "# source: simulated release\nt_s,p_bar\n".to_owned();
+    for (i, v) in p.iter().enumerate() {
+        let _ = writeln!(s, "{:.2},{v:.6}", i as f64 * 0.01);
+    }
+    let dir = data_set(tmp.path(), &[("sim.csv", s)]);
+    let (data, skipped) = load_dataset(&dir).expect("a release");
+    assert!(skipped.is_empty() && data.warnings.is_empty(), "{skipped}");
+    assert!(!refuses(SensorFault::ImplausibleLevel, true));
+    assert!(refuses(SensorFault::Frozen, true) && !refuses(SensorFault::Frozen, false));
+    assert!(refuses(SensorFault::OpenCircuit, false));
+}
