@@ -526,7 +526,10 @@ pub fn generate_with<T: Send>(
                         ),
                     ),
                 ];
-                meta.extend(truth.sensor_faults.iter().map(|f| ("sensor_fault", f.clone())));
+                // One line for all faults, as in truth.csv: a metadata key appears once.
+                if !truth.sensor_faults.is_empty() {
+                    meta.push(("sensor_fault", truth.sensor_faults.join(";")));
+                }
                 let mut buf = Vec::with_capacity(adc.len() * 10 + 256);
                 write_adc_trace(&mut buf, &meta, &adc)?;
                 let path = a.out.join(&row.file);

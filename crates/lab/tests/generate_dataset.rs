@@ -217,3 +217,18 @@ fn bad_arguments_are_clear_errors() {
     generate(&a, false).unwrap();
     assert!(std::fs::read_to_string(dir.join(MANIFEST)).unwrap().starts_with("file,label,locomotive,split\n"));
 }
+
+/// Two sensor faults on one trace: the trace stays readable (one `# sensor_fault:` line with
+/// both, as in truth.csv) and every tool can open it.
+#[test]
+fn two_sensor_faults_make_a_readable_trace() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut a = args(&tmp.path().join("two"));
+    a.classes = vec![FaultClass::Normal];
+    a.per_class = 0;
+    a.sensor_faults = ["frozen@3", "noisy@10"].iter().map(|s| pbm_lab::sensor_faults::parse_spec(s).unwrap()).collect();
+    generate(&a, false).unwrap();
+    let manifest = read_manifest(&a.out).unwrap();
+    let t = read_trace(&a.out.join(&manifest[0].file)).expect("readable");
+    assert_eq!(t.meta("sensor_fault"), Some("frozen@3.00;noisy=0.1@10.00"));
+}
