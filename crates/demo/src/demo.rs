@@ -462,7 +462,7 @@ fn can_stage(dir: &Path, out: &Path, per_class: usize) -> Result<CanStage> {
 
 fn estimator_stage(dir: &Path, test: &[TraceFeatures]) -> Result<Vec<EstimateCase>> {
     let data = Dataset::open(dir)?;
-    let truth = estimate::read_truth(dir)?;
+    let truth = estimate::read_truth(&data)?;
     test.par_iter()
         .map(|f| {
             let t = truth.get(&f.row.file).with_context(|| format!("{}: no row in {TRUTH}", f.row.file))?;

@@ -34,12 +34,14 @@ pub struct ManifestRow {
     pub split: String,
 }
 
-/// Reads `DIR/manifest.csv`; a malformed manifest is an error naming its line.
+/// Reads `DIR/manifest.csv` strictly: a malformed manifest or any refused row is an error
+/// naming its line ([`Dataset::open`] with no row refused).
 pub fn read_manifest(dir: &Path) -> Result<Vec<ManifestRow>, FileError> {
-    let path = dir.join(MANIFEST);
-    let name = path.display().to_string();
-    let file = crate::files::open_regular(&path)?;
-    parse_manifest(&name, BufReader::new(file))
+    let data = Dataset::open(dir)?;
+    match data.refused.into_iter().next() {
+        Some(e) => Err(e),
+        None => Ok(data.rows),
+    }
 }
 
 /// Parses manifest text; `name` is used in errors. Strict: any bad row is an error.

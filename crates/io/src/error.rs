@@ -31,11 +31,17 @@ impl FileError {
 
 impl fmt::Display for FileError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.line == 0 {
-            write!(f, "{}: {}", self.file, self.message)
-        } else {
-            write!(f, "{}:{}: {}", self.file, self.line, self.message)
-        }
+        write_located(f, &self.file, self.line, &self.message)
+    }
+}
+
+/// Writes `file:line: what` (`file: what` for line 0): how every input error of the project
+/// names its place.
+pub fn write_located(f: &mut fmt::Formatter<'_>, file: &str, line: usize, what: &dyn fmt::Display) -> fmt::Result {
+    if line == 0 {
+        write!(f, "{file}: {what}")
+    } else {
+        write!(f, "{file}:{line}: {what}")
     }
 }
 

@@ -245,11 +245,7 @@ impl TraceError {
 
 impl fmt::Display for TraceError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.line == 0 {
-            write!(f, "{}: {}", self.file, self.kind)
-        } else {
-            write!(f, "{}:{}: {}", self.file, self.line, self.kind)
-        }
+        crate::error::write_located(f, &self.file, self.line, &self.kind)
     }
 }
 

@@ -134,10 +134,8 @@ impl Truth {
 
 /// Reads `truth.csv` (columns by name: file, label, supply_bar_g, orifice_mm, leak_mm, v0_l, cf;
 /// others ignored).
-pub fn read_truth(dir: &Path) -> Result<HashMap<String, Truth>, FileError> {
-    let root = std::fs::canonicalize(dir).map_err(|e| FileError::new(dir.display(), 0, format!("cannot read: {e}")))?;
-    let path = dir.join(TRUTH);
-    pbm_io::files::ensure_inside(&root, TRUTH, &path)?;
+pub fn read_truth(data: &Dataset) -> Result<HashMap<String, Truth>, FileError> {
+    let path = data.side_file(TRUTH)?;
     let rows: Vec<(usize, Truth)> = read_rows(&path)?;
     Ok(rows.into_iter().map(|(_, t)| (t.file.clone(), t)).collect())
 }
@@ -253,7 +251,7 @@ type TruthAndCounts = (Truth, Vec<u16>);
 /// skipped with its reason.
 fn load_dataset(dir: &Path, split: &str, per_class: usize) -> Result<(Vec<TruthAndCounts>, Skipped)> {
     let data = Dataset::open(dir)?;
-    let truth = read_truth(dir)?;
+    let truth = read_truth(&data)?;
     let mut count = HashMap::<String, usize>::new();
     let chosen: Vec<&ManifestRow> = data
         .rows()
