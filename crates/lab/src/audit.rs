@@ -50,14 +50,30 @@
 //!    from the pair's optimum, and a pair with one mechanism switched off counts as that single,
 //!    so a second mechanism is only named when it is really needed. ≈ 3 000 twin runs, a few
 //!    seconds on two cores.
-//! 5. **Decision**: BIC with unknown noise scale, corrected for residual correlation:
-//!    ΔBIC = n_eff ln(RSS_base/RSS) − Δk ln n_eff, n_eff = n (1 − ρ)/(1 + ρ) with ρ the lag-1
-//!    autocorrelation of the best model's residual (a smooth leftover misfit counts as few
-//!    observations, so it cannot make a tiny improvement look significant). A mechanism is named
-//!    when ΔBIC > [`BIC_THRESHOLD`] *and* it cuts the RSS by at least [`MIN_RSS_RATIO`]; the best
-//!    pair replaces the best single under the same two rules against that single. Otherwise
-//!    `none`. The magnitude's uncertainty is the 1-σ of the Gauss–Newton covariance s² (JᵀJ)⁻¹
-//!    at the optimum, inflated by n/n_eff.
+//! 5. **Base parameters beyond tolerance** ([`WIDE_PARAMETERS`]: dead volume, discharge
+//!    coefficient, spring preload, friction): each is refitted alone with its box widened to a
+//!    physically possible range, as an explanation of its own (a wrong or worn part rather than
+//!    a missing mechanism), counted as one more parameter.
+//! 6. **Decision**: BIC with unknown noise scale, ΔBIC = n_eff ln(RSS_base/RSS) − Δk ln n_eff,
+//!    with n_eff = n (1 − ρ)/(1 + ρ) from the lag correlation ρ of the *noise*
+//!    ([`noise_correlation`]: the traces' deviations from their group mean, or from a local fit
+//!    for a single trace), never from a model's residual, which a missing mechanism makes smooth
+//!    (that discounted strong evidence 25-fold). A candidate is named when ΔBIC > [`BIC_THRESHOLD`]
+//!    *and* it cuts the RSS by at least [`MIN_RSS_RATIO`] *and* its magnitude is credible: a
+//!    magnitude at the edge of its search range ([`AT_BOUND_U`]; the data ask for more than the
+//!    library allows), one the data do not determine (1 σ as large as its distance from off), or
+//!    a "beyond tolerance" parameter inside its tolerance is flagged, reported, and never named.
+//!    The best pair replaces the best single under the same rules against that single; a
+//!    parameter beyond tolerance is preferred to a mechanism only when its RSS is
+//!    [`ALTERNATIVE_RSS_RATIO`] lower, and candidates within that ratio of the chosen one are
+//!    listed as alternatives the data cannot tell apart. Otherwise `none` (the base residual is at
+//!    the noise floor, [`NOISE_FLOOR_RATIO`]) or `unexplained`. The magnitude's uncertainty is
+//!    the 1-σ of the Gauss–Newton covariance s² (JᵀJ)⁻¹ at the optimum, inflated by the best
+//!    model's leftover residual correlation.
+//! 7. **What is missing** ([`crate::missing_flow`]): the unmodelled air flow the measured
+//!    pressure implies against the base model, located in time, release phase, pressure and
+//!    travel, and described by a sparse regression over physical terms ("an extra leak to
+//!    atmosphere above 5.25 bar g", "the inflow stops from 5.8 to 7.0 s").
 //!
 //! # Output
 //!
@@ -75,6 +91,7 @@
 //! spread (`none` is then the right answer), a `regulator_droop` below ≈ 0.4 bar is mostly a Cf
 //! and supply change, and a `sensor_gain` closer to 1 than ≈ 0.02 is partly a supply change.
 
+use crate::missing_flow::Reconstruction;
 use anyhow::{bail, Context, Result};
 use pbm::mechanism::Extensions;
 use pbm::mechanism::Mechanism;
@@ -107,6 +124,58 @@ pub const REFINED_PAIRS: usize = 2;
 pub const PAIR_POOL: usize = 4;
 /// Names of the base parameters, in vector order.
 pub const BASE_NAMES: [&str; 6] = ["cf", "v0", "f0", "k", "friction", "supply"];
+/// Half-widths of the base box: relative for the first five, bar for the supply.
+pub const BASE_BOX: [f64; 6] = [BASE_SPREAD, BASE_SPREAD, BASE_SPREAD, BASE_SPREAD, BASE_SPREAD, SUPPLY_SPREAD_BAR];
+
+/// A base parameter beyond its manufacturing tolerance, as an explanation of its own (a wrong
+/// or worn part rather than a missing mechanism).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WideParameter {
+    /// Index into [`BASE_NAMES`].
+    pub index: usize,
+    /// Name in verdicts.
+    pub name: &'static str,
+    /// Relative half-width of the physically possible range searched (the documented value
+    /// × (1 ± this)).
+    pub spread: f64,
+    /// In plain words.
+    pub description: &'static str,
+}
+
+/// The base parameters an audit also tries beyond tolerance: each replaces its ± 5.5 % box by
+/// a physically possible range and counts as one more parameter.
+pub const WIDE_PARAMETERS: [WideParameter; 4] = [
+    WideParameter {
+        index: 1,
+        name: "dead_volume",
+        spread: 0.9,
+        description: "the chamber's dead volume (a different cylinder, or extra pipe volume)",
+    },
+    WideParameter {
+        index: 0,
+        name: "discharge_coefficient",
+        spread: 0.5,
+        description: "the inlet orifice's discharge coefficient (a damaged or fouled orifice edge)",
+    },
+    WideParameter {
+        index: 2,
+        name: "spring_preload",
+        spread: 0.5,
+        description: "the spring preload (a weak, broken or wrong spring)",
+    },
+    WideParameter { index: 4, name: "friction", spread: 0.9, description: "the piston friction (worn or dry seals)" },
+];
+
+/// A magnitude within this distance (in the unit search coordinate) of the edge of its search
+/// range is at the bound: the optimum may lie beyond what the library allows, so it is no
+/// credible magnitude.
+pub const AT_BOUND_U: f64 = 2e-3;
+/// A cause that does not reach the noise floor must bring the RMS residual below this share of
+/// the base model's; otherwise it explains too little and the verdict is `unexplained`.
+pub const MAX_PARTIAL_LEFT: f64 = 0.5;
+/// Candidates whose RSS is within this factor of the chosen one fit the data as well: the
+/// verdict lists them as alternatives.
+pub const ALTERNATIVE_RSS_RATIO: f64 = 1.1;
 
 /// Releases of one documented configuration.
 #[derive(Debug, Clone, PartialEq)]
@@ -403,7 +472,12 @@ fn audit_trace(data: &Dataset, row: &ManifestRow) -> Result<(TwinParams, Vec<f64
 
 /// The brake described by base vector `u` (each in [0, 1]) around the documented `config`.
 pub fn base_params(config: &TwinParams, u: &[f64]) -> TwinParams {
-    let scale = |i: usize| 1.0 + BASE_SPREAD * (2.0 * u.get(i).copied().unwrap_or(0.5) - 1.0);
+    base_params_in(config, u, &BASE_BOX)
+}
+
+/// [`base_params`] in a box of half-widths `spread` ([`BASE_BOX`] or one parameter widened).
+pub fn base_params_in(config: &TwinParams, u: &[f64], spread: &[f64; 6]) -> TwinParams {
+    let scale = |i: usize| 1.0 + spread[i] * (2.0 * u.get(i).copied().unwrap_or(0.5) - 1.0);
     let mut p = *config;
     p.discharge_coeff *= scale(0);
     p.dead_volume_m3 *= scale(1);
@@ -411,7 +485,7 @@ pub fn base_params(config: &TwinParams, u: &[f64]) -> TwinParams {
     p.spring_rate_n_per_m *= scale(3);
     p.coulomb_n *= scale(4);
     p.static_n *= scale(4);
-    p.supply = BarG(config.supply.0 + SUPPLY_SPREAD_BAR * (2.0 * u.get(5).copied().unwrap_or(0.5) - 1.0));
+    p.supply = BarG(config.supply.0 + spread[5] * (2.0 * u.get(5).copied().unwrap_or(0.5) - 1.0));
     p
 }
 
@@ -448,6 +522,36 @@ pub fn twin_trace(params: &TwinParams, n: usize) -> Option<(Vec<f64>, Vec<f64>)>
         x.push(s.travel.to_mm());
     }
     Some((p, x))
+}
+
+/// The base box with `w` widened to its physically possible range.
+fn wide_box(w: &WideParameter) -> [f64; 6] {
+    let mut spread = BASE_BOX;
+    spread[w.index] = w.spread;
+    spread
+}
+
+/// Why magnitude coordinate `u` of `effect` is no credible cause: at the edge of its search
+/// range (the data ask for more than the library allows), unless that edge switches it off.
+fn at_bound_flag(effect: Mechanism, u: f64) -> Option<String> {
+    if (u > AT_BOUND_U && u < 1.0 - AT_BOUND_U) || is_off(effect, u) {
+        return None;
+    }
+    let (lo, hi) = effect.descriptor().brake.search;
+    Some(format!(
+        "{effect} = {:.3} {} is at the edge of the range the audit searches ({lo}–{hi} {})",
+        effect_value(effect, u),
+        effect.unit(),
+        effect.unit()
+    ))
+}
+
+/// A candidate with its magnitudes in words.
+fn candidate_text(c: &CandidateFit) -> String {
+    if let Some((name, scale, sd)) = c.parameter {
+        return format!("{name} = {scale:.3} ± {sd:.3} {PARAMETER_UNIT}");
+    }
+    c.effects.iter().map(|(e, v, u)| format!("{e} = {v:.4} ± {u:.4} {}", e.unit())).collect::<Vec<_>>().join(", ")
 }
 
 /// True when `effects` make the supply gas temperature and Cf one direction (no heat transfer:
@@ -768,7 +872,7 @@ where
 }
 
 /// Solves the symmetric system `m y = b` (Gaussian elimination with partial pivoting).
-fn solve(m: &[f64], b: &[f64], n: usize) -> Option<Vec<f64>> {
+pub(crate) fn solve(m: &[f64], b: &[f64], n: usize) -> Option<Vec<f64>> {
     let mut a: Vec<Vec<f64>> = (0..n).map(|i| (0..n).map(|j| m[i * n + j]).chain([b[i]]).collect()).collect();
     for c in 0..n {
         let piv = (c..n).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
@@ -820,16 +924,23 @@ pub struct CandidateFit {
     pub delta_bic: f64,
     /// Twin evaluations used.
     pub evaluations: usize,
+    /// A base parameter beyond tolerance: name, factor on the documented value, 1-σ.
+    pub parameter: Option<(&'static str, f64, f64)>,
+    /// Why this candidate cannot be a cause although it fits (a magnitude at the edge of its
+    /// search range, or a "beyond tolerance" parameter that stayed inside its tolerance).
+    pub flag: Option<String>,
 }
 
 /// The audit's problem: data plus how to evaluate a candidate.
 struct Problem<'a> {
     data: &'a AuditData,
+    /// The base box ([`BASE_BOX`], or one parameter widened).
+    spread: [f64; 6],
 }
 
 impl Problem<'_> {
     fn params(&self, g: &Group, x: &[f64], effects: &[Mechanism]) -> TwinParams {
-        let mut p = base_params(&g.config, &x[..BASE_NAMES.len()]);
+        let mut p = base_params_in(&g.config, &x[..BASE_NAMES.len()], &self.spread);
         p.ext = Extensions::NONE;
         for (i, &e) in effects.iter().enumerate() {
             p.ext[e] = effect_value(e, x[BASE_NAMES.len() + i]);
@@ -1110,6 +1221,15 @@ pub struct AuditOutcome {
     pub cause: String,
     /// Mechanisms of the cause with magnitude and 1-σ uncertainty (empty for `none`).
     pub cause_effects: Vec<(Mechanism, f64, f64)>,
+    /// A base parameter beyond tolerance named as the cause: name, factor on the documented
+    /// value, 1-σ.
+    pub cause_parameter: Option<(&'static str, f64, f64)>,
+    /// Other candidates that fit the data as well as the chosen one (RSS within
+    /// [`ALTERNATIVE_RSS_RATIO`]), in words: the data cannot tell them apart.
+    pub alternatives: Vec<String>,
+    /// Candidates that fit better but need a magnitude that is not credible (at the edge of the
+    /// searched range, or a parameter "beyond tolerance" inside it), with the reason.
+    pub flagged: Vec<String>,
     /// Base model fit.
     pub base: CandidateFit,
     /// The chosen model (the base for `none`).
@@ -1133,6 +1253,9 @@ pub struct AuditOutcome {
     pub residual_to_noise: (f64, f64),
     /// Warnings about the input ([`AuditData::warnings`]).
     pub warnings: Vec<String>,
+    /// The unmodelled flow the base model leaves, per configuration group (where the model is
+    /// wrong and what is missing, [`crate::missing_flow`]).
+    pub missing: Vec<Reconstruction>,
 }
 
 /// Largest RMS residual, in noise σ of the mean release, that a model may leave and still be
@@ -1140,6 +1263,33 @@ pub struct AuditOutcome {
 /// 8–16 times the noise in NMSE. Above it the verdict is `unexplained` when no candidate is
 /// chosen, and a chosen cause is reported as explaining only part of the discrepancy.
 pub const NOISE_FLOOR_RATIO: f64 = 2.0;
+
+/// Unit of a base parameter beyond tolerance in verdicts.
+pub const PARAMETER_UNIT: &str = "× documented";
+
+/// The `unmodelled_flow` entry of one group in the JSON verdict.
+fn reconstruction_json(m: &Reconstruction) -> serde_json::Value {
+    serde_json::json!({
+        "description": m.description,
+        "max_block_z": m.max_z,
+        "explained_by_terms": m.explained,
+        "terms": m.terms.iter().map(|t| serde_json::json!({
+            "name": t.name, "magnitude": t.magnitude, "unit": t.unit,
+            "knot_bar_g": if t.knot_bar.is_finite() { serde_json::json!(t.knot_bar) } else { serde_json::Value::Null },
+            "text": t.text,
+        })).collect::<Vec<_>>(),
+        "segments": m.segments.iter().map(|g| serde_json::json!({
+            "t_s": [g.t_s.0, g.t_s.1],
+            "sign": g.sign,
+            "mean_g_per_s": g.mean_g_s,
+            "inflow_ratio": g.inflow_ratio,
+            "pressure_bar_g": [g.pressure_bar.0, g.pressure_bar.1],
+            "travel_mm": [g.travel_mm.0, g.travel_mm.1],
+            "phases": g.phases,
+            "text": crate::missing_flow::segment_text(g),
+        })).collect::<Vec<_>>(),
+    })
+}
 
 /// Curves of one configuration group.
 #[derive(Debug, Clone, PartialEq)]
@@ -1156,7 +1306,7 @@ pub struct CurveSet {
 
 /// Runs the audit on loaded data.
 pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
-    let prob = Problem { data };
+    let prob = Problem { data, spread: BASE_BOX };
     let nb = BASE_NAMES.len();
     // Base: a few starts in the tolerance box.
     let base_starts: Vec<Vec<f64>> =
@@ -1172,6 +1322,8 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         nmse_pct: prob.nmse(&lm.x, effects),
         delta_bic: 0.0,
         evaluations: evals,
+        parameter: None,
+        flag: None,
     };
     // Singles, then pairs of the best singles: every candidate gets a short screening fit from
     // each start (one start is the base optimum with the mechanism off, so no candidate ends
@@ -1250,18 +1402,45 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     }
 
     collapse_degenerate_pairs(&mut fits);
+    // Base parameters beyond tolerance: each widened alone, from the base optimum and from
+    // both sides, screened then refined.
+    let wide_fits: Vec<(WideParameter, LmResult, usize)> = WIDE_PARAMETERS
+        .par_iter()
+        .filter_map(|w| {
+            let wprob = Problem { data, spread: wide_box(w) };
+            let base_scale = 1.0 + BASE_SPREAD * (2.0 * base_lm.x[w.index] - 1.0);
+            let starts: Vec<Vec<f64>> = [base_scale, 1.0 - 0.5 * w.spread, 1.0 + 0.5 * w.spread]
+                .iter()
+                .map(|&scale| {
+                    let mut x = base_lm.x.clone();
+                    x[w.index] = (0.5 + (scale - 1.0) / (2.0 * w.spread)).clamp(0.0, 1.0);
+                    x
+                })
+                .collect();
+            let (screen, ev) = wprob.fit(&[], &starts, SCREEN_ITER)?;
+            let refined = wprob.fit(&[], std::slice::from_ref(&screen.x), opts.max_iter);
+            Some(match refined {
+                Some((r, ev2)) if r.rss <= screen.rss => (*w, r, ev + ev2),
+                Some((_, ev2)) => (*w, screen, ev + ev2),
+                None => (*w, screen, ev),
+            })
+        })
+        .collect();
     for (effects, lm, _) in &mut fits {
         recenter_gas_temperature(effects, &mut lm.x);
     }
-    // Effective sample count from the best model's residual correlation.
+    // The test's effective sample count comes from the correlation of the *noise*, measured
+    // on the data (replicates, or the trace around its local fit), never from a model's
+    // residual: a missing mechanism makes every residual smooth, and discounting the evidence
+    // by that smoothness hid strong effects (n_eff 60 of 1500). The 1-σ uncertainties are
+    // still inflated by the best model's leftover correlation (its covariance is too
+    // optimistic when something is missing).
+    let rho_noise = noise_correlation(data, DECIMATE).clamp(0.0, 0.995);
+    let n_eff = (n as f64 * (1.0 - rho_noise) / (1.0 + rho_noise)).max(5.0);
     let best_all = fits.iter().map(|f| &f.1).chain([&base_lm]).min_by(|a, b| a.rss.total_cmp(&b.rss)).cloned();
     let best_all = best_all.context("no model could be fitted")?;
     let rho = acf(&best_all.residual, 1).first().copied().unwrap_or(0.0).clamp(0.0, 0.995);
-    // Floor: one independent observation per second of trace (the release dynamics are ~1 s
-    // and slower), so a model that fits badly everywhere cannot hide a large improvement.
-    let seconds: f64 = data.groups.iter().map(|g| g.mean.len() as f64 * SAMPLE_PERIOD_S).sum();
-    let n_eff = (n as f64 * (1.0 - rho) / (1.0 + rho)).max(seconds.min(n as f64)).max(5.0);
-    let inflation = n as f64 / n_eff;
+    let inflation = ((1.0 + rho) / (1.0 - rho)).max(n as f64 / n_eff);
     let dbic = |rss0: f64, rss1: f64, dk: usize| n_eff * (rss0 / rss1.max(1e-300)).ln() - dk as f64 * n_eff.ln();
 
     let base = {
@@ -1292,19 +1471,68 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
                     (diag[g] * s2).max(0.0).sqrt() * slope
                 };
             }
+            c.flag = effects.iter().enumerate().find_map(|(i, &e)| at_bound_flag(e, lm.x[nb + i])).or_else(|| {
+                // A magnitude the data do not determine (1 σ as large as its distance from
+                // "off") is no finding either.
+                c.effects
+                    .iter()
+                    .find(|(e, v, sd)| *sd >= (v - e.off()).abs())
+                    .map(|(e, v, sd)| format!("{e} = {v:.3} ± {sd:.3} {} is not determined by the data", e.unit()))
+            });
             c
         })
         .collect();
+    for (w, lm, evals) in &wide_fits {
+        let wprob = Problem { data, spread: wide_box(w) };
+        let u = lm.x[w.index];
+        let scale = 1.0 + w.spread * (2.0 * u - 1.0);
+        let dims = lm.x.len();
+        let s2 = lm.rss / (n.saturating_sub(dims + 1).max(1)) as f64 * inflation;
+        let sigma = (inverse_diag(&lm.jtj, dims)[w.index] * s2).max(0.0).sqrt() * 2.0 * w.spread;
+        let flag = if u <= AT_BOUND_U || u >= 1.0 - AT_BOUND_U {
+            Some(format!(
+                "{} = {scale:.2} × documented is at the edge of the physically possible range searched (× {:.2}–{:.2})",
+                w.name,
+                1.0 - w.spread,
+                1.0 + w.spread
+            ))
+        } else if (scale - 1.0).abs() <= BASE_SPREAD {
+            Some(format!("{} = {scale:.2} × documented is inside its manufacturing tolerance", w.name))
+        } else {
+            None
+        };
+        ranking.push(CandidateFit {
+            name: w.name.to_owned(),
+            effects: Vec::new(),
+            base_u: lm.x.clone(),
+            rss: lm.rss,
+            k: dims + 1,
+            nmse_pct: wprob.nmse(&lm.x, &[]),
+            delta_bic: dbic(base_lm.rss, lm.rss, 1),
+            evaluations: *evals,
+            parameter: Some((w.name, scale, sigma)),
+            flag,
+        });
+    }
     ranking.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
 
-    // Decision.
-    let best_single = ranking.iter().find(|c| c.effects.len() == 1).cloned();
+    // Decision, among the candidates with credible magnitudes. A base parameter beyond
+    // tolerance is preferred to a mechanism only when it fits clearly better (the mechanisms are
+    // the known ways a brake goes wrong); on a near tie both are reported.
+    let credible = |c: &&CandidateFit| c.flag.is_none();
+    let by_bic = |a: &&CandidateFit, b: &&CandidateFit| a.delta_bic.total_cmp(&b.delta_bic);
+    let best_mechanism = ranking.iter().filter(|c| c.effects.len() == 1).filter(credible).max_by(by_bic);
+    let best_parameter = ranking.iter().filter(|c| c.parameter.is_some()).filter(credible).max_by(by_bic);
+    let best_single = match (best_mechanism, best_parameter) {
+        (Some(m), Some(p)) if p.rss * ALTERNATIVE_RSS_RATIO < m.rss => Some(p),
+        (Some(m), _) => Some(m),
+        (None, p) => p,
+    };
     let mut chosen = base.clone();
     if let Some(s) = best_single {
         if s.delta_bic > BIC_THRESHOLD && base.rss / s.rss >= MIN_RSS_RATIO {
             chosen = s.clone();
-            let best_pair =
-                ranking.iter().filter(|c| c.effects.len() == 2).max_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
+            let best_pair = ranking.iter().filter(|c| c.effects.len() == 2).filter(credible).max_by(by_bic);
             // Any pair may replace the best single, but only by beating it on both rules.
             if let Some(p) = best_pair {
                 if dbic(s.rss, p.rss, 1) > BIC_THRESHOLD && s.rss / p.rss >= MIN_RSS_RATIO {
@@ -1313,12 +1541,46 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
             }
         }
     }
+    let terms = |c: &CandidateFit| c.effects.len() + usize::from(c.parameter.is_some());
+    let mut alternatives: Vec<String> = if terms(&chosen) == 0 {
+        Vec::new()
+    } else {
+        ranking
+            .iter()
+            .filter(credible)
+            .filter(|c| c.name != chosen.name && terms(c) <= terms(&chosen))
+            .filter(|c| c.rss <= ALTERNATIVE_RSS_RATIO * chosen.rss)
+            .map(candidate_text)
+            .collect()
+    };
+    // Fits that would have won but need an incredible magnitude: said, never named.
+    let flagged: Vec<String> = ranking
+        .iter()
+        .filter(|c| c.delta_bic > chosen.delta_bic.max(BIC_THRESHOLD) && base.rss / c.rss >= MIN_RSS_RATIO)
+        .filter_map(|c| c.flag.as_ref().map(|f| format!("{}: {f}", c.name)))
+        .take(3)
+        .collect();
     let to_noise = |rss: f64| (rss / n.max(1) as f64).sqrt();
+    // A partial explanation must at least halve the residual: a cause that leaves most of the
+    // discrepancy (a discharge coefficient of 0.6 for a valve that opens 4.7 s late) is not one.
+    let mut flagged = flagged;
+    let (rb, rc) = (to_noise(base.rss), to_noise(chosen.rss));
+    if terms(&chosen) > 0 && rc > NOISE_FLOOR_RATIO && rc > MAX_PARTIAL_LEFT * rb {
+        flagged.insert(
+            0,
+            format!(
+                "{}: leaves {rc:.1}× of the base's {rb:.1}× the noise, too little explained to be the cause",
+                candidate_text(&chosen)
+            ),
+        );
+        chosen = base.clone();
+        alternatives.clear();
+    }
     let residual_to_noise = (to_noise(base.rss), to_noise(chosen.rss));
     if !(residual_to_noise.0.is_finite() && residual_to_noise.1.is_finite()) {
         bail!("{}: the fit gave no finite residual: these releases cannot be audited", data.source);
     }
-    let cause = match (chosen.effects.is_empty(), residual_to_noise.0 <= NOISE_FLOOR_RATIO) {
+    let cause = match (terms(&chosen) == 0, residual_to_noise.0 <= NOISE_FLOOR_RATIO) {
         (true, true) => "none".to_owned(),
         (true, false) => "unexplained".to_owned(),
         (false, _) => chosen.name.clone(),
@@ -1327,7 +1589,14 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         chosen.base_u.iter().copied().chain(chosen.effects.iter().map(|&(e, v, _)| effect_u(e, v))).collect();
     let chosen_effects: Vec<Mechanism> = chosen.effects.iter().map(|e| e.0).collect();
     let base_preds = prob.predictions(&base_lm.x, &[]);
-    let chosen_preds = prob.predictions(&chosen_x, &chosen_effects);
+    let chosen_prob = Problem {
+        data,
+        spread: WIDE_PARAMETERS
+            .iter()
+            .find(|w| chosen.parameter.is_some_and(|p| p.0 == w.name))
+            .map_or(BASE_BOX, wide_box),
+    };
+    let chosen_preds = chosen_prob.predictions(&chosen_x, &chosen_effects);
     let diagnostics = diagnostics(data, &base_preds);
     let chosen_diagnostics = diagnostics_of(data, &chosen_preds);
     let curves = data
@@ -1367,11 +1636,20 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
             chosen.effects.iter().map(|(e, v, u)| format!(", {e} = {v} ± {u}")).collect::<String>()
         );
     }
+    let missing = data
+        .groups
+        .par_iter()
+        .map(|g| crate::missing_flow::reconstruct(&prob.params(g, &base_lm.x, &[]), &g.mean, g.sigma_mean))
+        .collect();
     Ok(AuditOutcome {
+        missing,
         source: data.source.clone(),
         warnings: data.warnings.clone(),
         cause,
         cause_effects: chosen.effects.clone(),
+        cause_parameter: chosen.parameter,
+        alternatives,
+        flagged,
         nmse_per_trace,
         base,
         chosen,
@@ -1383,6 +1661,31 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         n,
         residual_to_noise,
     })
+}
+
+/// Lag-`lag` autocorrelation of the measurement noise, pooled over every trace: the deviation of
+/// each trace from its group's mean when the group has replicates (exactly noise, whatever the
+/// model), else from its own local linear fit (±[`crate::missing_flow::HALF_WINDOW`] samples).
+pub fn noise_correlation(data: &AuditData, lag: usize) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for g in &data.groups {
+        for t in &g.traces {
+            let e: Vec<f64> = if g.traces.len() >= 2 {
+                t.iter().zip(&g.mean).map(|(a, m)| a - m).collect()
+            } else {
+                let fit = crate::missing_flow::local_linear(t, crate::missing_flow::HALF_WINDOW);
+                t.iter().zip(&fit).map(|(a, f)| a - f.0).collect()
+            };
+            let m = e.iter().sum::<f64>() / e.len().max(1) as f64;
+            den += e.iter().map(|v| (v - m) * (v - m)).sum::<f64>();
+            num += e.windows(lag + 1).map(|w| (w[0] - m) * (w[lag] - m)).sum::<f64>();
+        }
+    }
+    if den > 0.0 {
+        num / den
+    } else {
+        0.0
+    }
 }
 
 fn diagnostics_of(data: &AuditData, preds: &[(Vec<f64>, Vec<f64>)]) -> Diagnostics {
@@ -1412,7 +1715,12 @@ impl AuditOutcome {
     pub fn to_json(&self) -> serde_json::Value {
         let mut doc = verdict_json(&VerdictJson {
             cause: &self.cause,
-            causes: self.cause_effects.iter().map(|(e, v, sd)| (e.name(), e.unit(), *v, *sd)).collect(),
+            causes: self
+                .cause_effects
+                .iter()
+                .map(|(e, v, sd)| (e.name(), e.unit(), *v, *sd))
+                .chain(self.cause_parameter.map(|(name, v, sd)| (name, PARAMETER_UNIT, v, sd)))
+                .collect(),
             nmse_pct: (self.base.nmse_pct, self.chosen.nmse_pct),
             nmse_per_trace_pct: Some(self.nmse_per_trace),
             noise_sigma_bar: self.diagnostics.sigma_trace_bar,
@@ -1424,6 +1732,9 @@ impl AuditOutcome {
             "noise_floor": NOISE_FLOOR_RATIO,
         });
         doc["explains_all"] = serde_json::Value::Bool(self.explains_all());
+        doc["alternatives"] = serde_json::json!(self.alternatives);
+        doc["flagged"] = serde_json::json!(self.flagged);
+        doc["unmodelled_flow"] = serde_json::json!(self.missing.iter().map(reconstruction_json).collect::<Vec<_>>());
         doc["warnings"] = serde_json::json!(self.warnings);
         doc
     }
@@ -1436,23 +1747,45 @@ impl AuditOutcome {
     /// The verdict in one sentence, with its evidence.
     pub fn verdict_text(&self) -> String {
         let (base, chosen) = self.residual_to_noise;
-        match self.cause.as_str() {
+        let mut text = match self.cause.as_str() {
             "none" => format!(
                 "none: the base model is consistent with the noise (residual {base:.1}× the noise σ of the mean \
                  release, floor {NOISE_FLOOR_RATIO})"
             ),
             "unexplained" => format!(
                 "unexplained: the base model's residual is {base:.1}× the noise (floor {NOISE_FLOOR_RATIO}) and no \
-                 mechanism of the library explains it; see where in the phases and windows below"
+                 mechanism of the library, and no parameter beyond tolerance, explains it credibly"
             ),
-            name if self.explains_all() => {
-                format!("{name}: explains the discrepancy (residual {base:.1}× → {chosen:.1}× the noise)")
+            name => {
+                let what = match self.cause_parameter {
+                    Some((p, v, sd)) => format!(
+                        "{p} = {v:.3} ± {sd:.3} × documented, beyond its ± {:.1} % tolerance",
+                        100.0 * BASE_SPREAD
+                    ),
+                    None => name.to_owned(),
+                };
+                if self.explains_all() {
+                    format!("{what}: explains the discrepancy (residual {base:.1}× → {chosen:.1}× the noise)")
+                } else {
+                    format!(
+                        "{what} explains part of the discrepancy (residual {base:.1}× → {chosen:.1}× the noise, floor \
+                         {NOISE_FLOOR_RATIO}): something else is missing too"
+                    )
+                }
             }
-            name => format!(
-                "{name} explains part of the discrepancy (residual {base:.1}× → {chosen:.1}× the noise, floor \
-                 {NOISE_FLOOR_RATIO}): something else is missing too"
-            ),
+        };
+        if !self.alternatives.is_empty() {
+            text.push_str(&format!("; the data fit {} as well", self.alternatives.join(" or ")));
         }
+        if !self.flagged.is_empty() {
+            text.push_str(&format!("; not credible although it fits: {}", self.flagged.join("; ")));
+        }
+        if !self.explains_all() {
+            if let Some(m) = self.missing.iter().find(|m| m.significant()) {
+                text.push_str(&format!("; what is missing: {}", m.description));
+            }
+        }
+        text
     }
 
     /// Plain-text summary.
@@ -1488,8 +1821,16 @@ impl AuditOutcome {
         let runs = self.base.evaluations + self.ranking.iter().map(|c| c.evaluations).sum::<usize>();
         let _ = writeln!(s, "candidates (n = {}, n_eff = {:.0}; {runs} twin runs in all):", self.n, self.n_eff);
         for c in &self.ranking {
-            let effects: Vec<_> = c.effects.iter().map(|(e, v, u)| (e.name(), e.unit(), *v, *u)).collect();
+            let effects: Vec<_> = c
+                .effects
+                .iter()
+                .map(|(e, v, u)| (e.name(), e.unit(), *v, *u))
+                .chain(c.parameter.map(|(name, v, sd)| (name, PARAMETER_UNIT, v, sd)))
+                .collect();
             s.push_str(&ranking_line(&c.name, c.delta_bic, self.base.rss / c.rss, c.nmse_pct, &effects));
+            if let Some(f) = &c.flag {
+                let _ = writeln!(s, "      not credible: {f}");
+            }
         }
         let _ = writeln!(
             s,
@@ -1498,6 +1839,7 @@ impl AuditOutcome {
             self.cause_effects
                 .iter()
                 .map(|(e, v, u)| format!("  {e} = {v:.4} ± {u:.4} {}", e.unit()))
+                .chain(self.cause_parameter.map(|(p, v, u)| format!("  {p} = {v:.4} ± {u:.4} {PARAMETER_UNIT}")))
                 .collect::<String>()
         );
         let _ = writeln!(
@@ -1509,6 +1851,23 @@ impl AuditOutcome {
             self.nmse_per_trace.0,
             self.nmse_per_trace.1
         );
+        for (i, m) in self.missing.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "unmodelled flow{}: {}",
+                if self.missing.len() > 1 { format!(" (group {})", i + 1) } else { String::new() },
+                m.description
+            );
+            for seg in &m.segments {
+                let _ = writeln!(s, "  {}", crate::missing_flow::segment_text(seg));
+            }
+            for t in &m.terms {
+                let _ = writeln!(s, "  term: {}", t.text);
+            }
+            if !m.terms.is_empty() {
+                let _ = writeln!(s, "  terms explain {:.0} % of the excess", 100.0 * m.explained);
+            }
+        }
         let _ = writeln!(s, "verdict: {}", self.verdict_text());
         s
     }

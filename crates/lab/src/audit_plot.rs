@@ -118,17 +118,77 @@ pub fn acf_svg(out: &AuditOutcome) -> Result<String> {
     Ok(buf)
 }
 
+/// The unmodelled flow of group `i` (the reconstruction of the audit, block means, g/s)
+/// against time, with its ± significance band, and against the measured pressure.
+pub fn missing_flow_svg(out: &AuditOutcome, i: usize) -> Result<String> {
+    use crate::missing_flow::Z_SIGNIFICANT;
+    let Some(m) = out.missing.get(i) else { return Ok(String::new()) };
+    let mut buf = String::new();
+    {
+        let root = SVGBackend::with_string(&mut buf, (1000, 420)).into_drawing_area();
+        root.fill(&WHITE).map_err(e)?;
+        let (left, right) = root.split_horizontally(620);
+        let flows: Vec<f64> = m.blocks.iter().map(|b| b.flow_g_s).collect();
+        let band: Vec<f64> =
+            m.blocks.iter().flat_map(|b| [Z_SIGNIFICANT * b.sigma_g_s, -Z_SIGNIFICANT * b.sigma_g_s]).collect();
+        let yr = span(&[&flows, &band], 0.2);
+        let t_end = m.blocks.last().map_or(1.0, |b| b.t_s + 0.125);
+        let sig = |b: &crate::missing_flow::Block| b.z().abs() >= Z_SIGNIFICANT;
+        {
+            let mut chart = ChartBuilder::on(&left)
+                .caption("unmodelled air flow vs time", ("sans-serif", 16))
+                .margin(10)
+                .x_label_area_size(30)
+                .y_label_area_size(55)
+                .build_cartesian_2d(0.0..t_end, yr.clone())
+                .map_err(e)?;
+            chart.configure_mesh().x_desc("t, s").y_desc("flow, g/s (+ in, − out)").draw().map_err(e)?;
+            for sign in [1.0, -1.0] {
+                let line: Vec<(f64, f64)> =
+                    m.blocks.iter().map(|b| (b.t_s, sign * Z_SIGNIFICANT * b.sigma_g_s)).collect();
+                chart.draw_series(LineSeries::new(line, GREEN.mix(0.7))).map_err(e)?;
+            }
+            chart.draw_series(LineSeries::new(m.blocks.iter().map(|b| (b.t_s, b.flow_g_s)), BLACK)).map_err(e)?;
+            chart
+                .draw_series(
+                    m.blocks.iter().filter(|b| sig(b)).map(|b| Circle::new((b.t_s, b.flow_g_s), 3, RED.filled())),
+                )
+                .map_err(e)?;
+        }
+        {
+            let p_hi = m.blocks.iter().map(|b| b.pressure_bar).fold(1.0, f64::max) + 0.2;
+            let mut chart = ChartBuilder::on(&right)
+                .caption("… vs measured pressure", ("sans-serif", 16))
+                .margin(10)
+                .x_label_area_size(30)
+                .y_label_area_size(45)
+                .build_cartesian_2d(-0.2..p_hi, yr)
+                .map_err(e)?;
+            chart.configure_mesh().x_desc("pressure, bar g").draw().map_err(e)?;
+            chart
+                .draw_series(m.blocks.iter().map(|b| {
+                    let c = if sig(b) { RED.filled() } else { BLACK.mix(0.4).filled() };
+                    Circle::new((b.pressure_bar, b.flow_g_s), 2, c)
+                }))
+                .map_err(e)?;
+        }
+        root.present().map_err(e)?;
+    }
+    Ok(buf)
+}
+
 fn esc(s: &str) -> String {
     s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;")
 }
 
-/// Every plot as `(file name, SVG text)`: `curves_N.svg` and `residual_N.svg` per configuration
-/// group N, then `acf.svg`.
+/// Every plot as `(file name, SVG text)`: `curves_N.svg`, `residual_N.svg` and
+/// `missing_flow_N.svg` per configuration group N, then `acf.svg`.
 pub fn svgs(out: &AuditOutcome) -> Result<Vec<(String, String)>> {
     let mut v = Vec::new();
     for (i, c) in out.curves.iter().enumerate() {
         v.push((format!("curves_{i}.svg"), curves_svg(out, c)?));
         v.push((format!("residual_{i}.svg"), residual_svg(out, c)?));
+        v.push((format!("missing_flow_{i}.svg"), missing_flow_svg(out, i)?));
     }
     v.push(("acf.svg".to_owned(), acf_svg(out)?));
     Ok(v)
@@ -155,7 +215,9 @@ pub fn html_section(out: &AuditOutcome) -> Result<String> {
         "<section class=\"audit\"><h2>Model-discrepancy audit</h2><p>Data: <code>{}</code></p>",
         esc(&out.source)
     );
-    let cause = if out.cause_effects.is_empty() {
+    let cause = if let Some((p, v, u)) = out.cause_parameter {
+        format!("<b>{p}</b> = {v:.3} ± {u:.3} {}", crate::audit::PARAMETER_UNIT)
+    } else if out.cause_effects.is_empty() {
         format!("<b>{}</b>", esc(&out.cause))
     } else {
         out.cause_effects
@@ -200,10 +262,28 @@ pub fn html_section(out: &AuditOutcome) -> Result<String> {
         );
     }
     let _ = write!(h, "</table>");
+    for (i, m) in out.missing.iter().enumerate() {
+        let _ = write!(h, "<h3>What is missing: the unmodelled air flow</h3><p>{}</p>", esc(&m.description));
+        if !m.segments.is_empty() {
+            let _ = write!(h, "<ul>");
+            for s in &m.segments {
+                let _ = write!(h, "<li>{}</li>", esc(&crate::missing_flow::segment_text(s)));
+            }
+            let _ = write!(h, "</ul>");
+        }
+        h.push_str(&missing_flow_svg(out, i)?);
+        let _ = write!(
+            h,
+            "<p>The air flow the chamber must have received to follow the measured pressure, minus what the base \
+             model lets in at that pressure, in 0.25 s blocks; green: the significance band (± 4 σ of the noise), \
+             red: significant blocks. During the stroke a force the model lacks shows as a flow too.</p>"
+        );
+    }
     let _ = write!(
         h,
-        "<h3>Candidates</h3><p>Each is the base twin plus the mechanism(s), all refitted. ΔBIC uses n_eff = {:.0} \
-         of n = {} samples (residual correlation); a cause needs ΔBIC &gt; 10 and an RSS cut ≥ 1.5×.</p>\
+        "<h3>Candidates</h3><p>Each is the base twin plus the mechanism(s), or one base parameter beyond its tolerance, \
+         all refitted. ΔBIC uses n_eff = {:.0} of n = {} samples (from the noise's own correlation); a cause needs \
+         ΔBIC &gt; 10, an RSS cut ≥ 1.5× and a magnitude inside the range searched.</p>\
          <table><tr><th>model</th><th>ΔBIC</th><th>RSS base / model</th><th>NMSE</th><th>magnitudes (±1σ)</th></tr>",
         out.n_eff, out.n
     );
@@ -212,6 +292,8 @@ pub fn html_section(out: &AuditOutcome) -> Result<String> {
             .effects
             .iter()
             .map(|(ef, v, u)| format!("{ef} = {v:.4} ± {u:.4} {}", ef.unit()))
+            .chain(c.parameter.map(|(p, v, u)| format!("{p} = {v:.3} ± {u:.3} {}", crate::audit::PARAMETER_UNIT)))
+            .chain(c.flag.iter().map(|f| format!("(not credible: {f})")))
             .collect::<Vec<_>>()
             .join(", ");
         let _ = write!(

@@ -21,6 +21,7 @@ pub mod estimate;
 pub mod fit;
 pub mod generate;
 pub mod metro;
+pub mod missing_flow;
 pub mod plant;
 pub mod random;
 pub mod reference;

@@ -267,6 +267,30 @@ impl ReferenceTwin {
     }
 }
 
+/// Travel (m) and velocity (m/s) of the base piston driven by a *given* chamber pressure
+/// (`p_bar_g`, one value per `sample_s`, linearly interpolated between samples), integrated at
+/// [`REFERENCE_STEP_S`]: the motion a measured pressure trace implies, for the audit's
+/// reconstruction of the unmodelled flow ([`crate::missing_flow`]). One value per sample.
+pub fn piston_under_pressure(params: &TwinParams, p_bar_g: &[f64], sample_s: f64) -> (Vec<f64>, Vec<f64>) {
+    let mut state = ReferenceState { p: P0, x: 0.0, v: 0.0, z: 0.0 };
+    let substeps = ((sample_s / REFERENCE_STEP_S).round() as usize).max(1);
+    let h = sample_s / substeps as f64;
+    let mut x = Vec::with_capacity(p_bar_g.len());
+    let mut v = Vec::with_capacity(p_bar_g.len());
+    for (i, &p) in p_bar_g.iter().enumerate() {
+        x.push(state.x);
+        v.push(state.v);
+        let next = p_bar_g.get(i + 1).copied().unwrap_or(p);
+        for k in 0..substeps {
+            let w = k as f64 / substeps as f64;
+            state.p = ((1.0 - w) * p + w * next + 1.0) * 1e5;
+            let (nx, nv, nz) = piston_step(params, &state, h, 0.0);
+            state = ReferenceState { p: state.p, x: nx, v: nv, z: nz };
+        }
+    }
+    (x, v)
+}
+
 /// One step of the piston: `M dv/dt = (P − P0) A − F0 − K (1 + β x/L) x − F_f` with LuGre friction
 /// `F_f` (`β` = `progressive`, 0 for the base spring), `(sigma1 + B) v` implicit, inelastic end
 /// stops. Returns the new `(x, v, z)`.
