@@ -2,6 +2,10 @@
 //! workspace shares), the memory map from the repository root, and the ADC trace that the
 //! QEMU "ADC" plays back, compiled into flash.
 //!
+//! All of it only with the feature `qemu` (the default): a board crate (`board/`) links this
+//! library without it, and the root `memory.x` / `device.x` on its linker search path would
+//! shadow the board's own (a library's `rustc-link-search` reaches every dependent's link).
+//!
 //! Trace source (one release, valve open from the first sample, 100 Hz):
 //! - `PBM_FW_TRACE=<file>`: a SPEC §7 trace in raw-counts form (`t_s,adc` header, `#` comment
 //!   lines allowed). Only that canonical form is accepted here, strictly; pressure traces
@@ -85,6 +89,10 @@ fn read_adc_trace(path: &Path) -> Result<Vec<u16>, String> {
 }
 
 fn main() {
+    println!("cargo:rerun-if-changed=build.rs");
+    if std::env::var_os("CARGO_FEATURE_QEMU").is_none() {
+        return;
+    }
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
     let root = manifest.parent().expect("firmware/ sits in the repository root");
     let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
@@ -95,9 +103,10 @@ fn main() {
     println!("cargo:rustc-link-search={}", manifest.display());
     println!("cargo:rerun-if-changed={}", manifest.join("device.x").display());
     println!("cargo:rerun-if-changed={}", root.join("memory.x").display());
-    println!("cargo:rerun-if-changed=build.rs");
     println!("cargo:rerun-if-env-changed=PBM_FW_TRACE");
     println!("cargo:rustc-link-arg-bins=-Tlink.x");
+    // defmt's interned strings go to the non-allocated `.defmt` section of the ELF.
+    println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
 
     let (name, samples) = match std::env::var_os("PBM_FW_TRACE") {
         Some(p) => {

@@ -1,58 +1,24 @@
-//! Text output, exit status and panic handling over ARM semihosting.
+//! The QEMU build's link to the host over ARM semihosting: the defmt log, the CAN "bus", the
+//! exit status and the panic handler.
 //!
-//! On QEMU (`-semihosting-config enable=on,target=native`) the text goes to QEMU's standard
-//! output and [`exit`] ends QEMU with status 0 (success) or 1 (failure): the exit status is the
-//! pass/fail result of a firmware run. On a real board semihosting needs an attached debug probe
-//! (probe-rs forwards it); without one a semihosting call stops the core at a breakpoint.
+//! - **Log**: the global defmt logger. Its encoded frames go to the host's standard *error*
+//!   (semihosting `:tt` in append mode); the runner (`firmware/qemu-run.sh`) pipes them through
+//!   `defmt-print`, which looks the format strings up in the ELF. The strings themselves never
+//!   reach flash (issue 19).
+//! - **CAN bus**: [`write_stdout`] writes raw bytes to the host's standard output; the candump
+//!   "driver" (`candump.rs`) puts its lines there, so standard output is exactly the candump log
+//!   that `cargo xtask fw-can-equality` compares byte for byte with the host's.
+//! - **Exit**: [`exit`] ends QEMU with status 0 (success) or 1 (failure): the exit status is the
+//!   pass/fail result of a run.
+//!
+//! On a real board semihosting needs an attached debugger (without one a semihosting call stops
+//! the core at a breakpoint), which is why the board build (`board/`) uses defmt-rtt instead.
 
-use core::fmt::Write as _;
+use core::cell::{Cell, UnsafeCell};
+use core::sync::atomic::{AtomicBool, Ordering};
 
 use cortex_m_semihosting::debug;
 use cortex_m_semihosting::hio::{self, HostStream};
-
-/// Longest line [`print_line`] writes in one semihosting call; longer text is cut.
-pub const LINE_CAPACITY: usize = 192;
-
-/// Writes `args` and a newline to the host's standard output in one semihosting call (so lines
-/// of concurrent writers never interleave). Text beyond [`LINE_CAPACITY`] bytes is dropped.
-pub fn print_line(args: core::fmt::Arguments<'_>) {
-    let mut line: heapless::String<LINE_CAPACITY> = heapless::String::new();
-    // A full buffer only truncates the line; the monitor must not stop for a log line.
-    let _ = line.write_fmt(args);
-    if line.push('\n').is_err() {
-        line.pop();
-        let _ = line.push('\n');
-    }
-    write_stdout(line.as_bytes());
-}
-
-/// As [`print_line`], to the host's standard error (logs of the `monitor` binary, whose standard
-/// output carries only the candump log).
-pub fn eprint_line(args: core::fmt::Arguments<'_>) {
-    let mut line: heapless::String<LINE_CAPACITY> = heapless::String::new();
-    let _ = line.write_fmt(args);
-    if line.push('\n').is_err() {
-        line.pop();
-        let _ = line.push('\n');
-    }
-    write_stderr(line.as_bytes());
-}
-
-/// `eprintln!`-like wrapper around [`eprint_line`].
-#[macro_export]
-macro_rules! eprintln {
-    ($($arg:tt)*) => {
-        $crate::console::eprint_line(format_args!($($arg)*))
-    };
-}
-
-/// `println!`-like wrapper around [`print_line`].
-#[macro_export]
-macro_rules! println {
-    ($($arg:tt)*) => {
-        $crate::console::print_line(format_args!($($arg)*))
-    };
-}
 
 /// Ends the run: QEMU exits with status 0 when `success`, 1 otherwise.
 pub fn exit(success: bool) -> ! {
@@ -63,129 +29,23 @@ pub fn exit(success: bool) -> ! {
     }
 }
 
-/// Formats a Q7.24 absolute pressure as gauge bar with six decimals, integer arithmetic only
-/// (no float formatting code in flash).
-pub struct GaugeBar(pub i32);
-
-impl core::fmt::Display for GaugeBar {
-    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
-        let gauge_q24 = i64::from(self.0) - (1i64 << 24);
-        // Round half away from zero to micro-bar.
-        let micro = (gauge_q24.abs() * 1_000_000 + (1 << 23)) >> 24;
-        let sign = if gauge_q24 < 0 && micro != 0 { "-" } else { "" };
-        write!(f, "{sign}{}.{:06}", micro / 1_000_000, micro % 1_000_000)
-    }
-}
-
 #[panic_handler]
 fn panic(info: &core::panic::PanicInfo<'_>) -> ! {
     // Last resort: the per-sample path is written not to panic (see `tests/pipeline_no_panic.rs`
     // in the core); if it ever does, say where and fail the run instead of hanging until the
-    // QEMU timeout. Only the location is printed, formatted by hand: formatting the message
-    // would link `core::fmt` into every binary.
+    // QEMU timeout. Only the location is logged: formatting the message would link `core::fmt`.
     cortex_m::interrupt::disable();
-    let mut line = Text::new().str("PANIC");
-    if let Some(loc) = info.location() {
-        line = line.str(" at ").str(loc.file()).str(":").u32(loc.line());
+    match info.location() {
+        Some(loc) => defmt::error!("PANIC at {=str}:{=u32}", loc.file(), loc.line()),
+        None => defmt::error!("PANIC"),
     }
-    line.print();
     exit(false)
-}
-
-/// One line of log text built without `core::fmt` (strings and integers formatted by hand), so
-/// that the `monitor` application links no formatting machinery. Text beyond
-/// [`LINE_CAPACITY`] bytes is dropped.
-#[derive(Clone)]
-pub struct Text {
-    buf: [u8; LINE_CAPACITY],
-    len: usize,
-}
-
-impl Default for Text {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl Text {
-    /// An empty line.
-    pub const fn new() -> Self {
-        Self { buf: [0; LINE_CAPACITY], len: 0 }
-    }
-
-    fn byte(&mut self, b: u8) {
-        if let Some(slot) = self.buf.get_mut(self.len) {
-            *slot = b;
-            self.len += 1;
-        }
-    }
-
-    /// Appends `s` (cut at the capacity).
-    #[must_use]
-    pub fn str(mut self, s: &str) -> Self {
-        for &b in s.as_bytes() {
-            self.byte(b);
-        }
-        self
-    }
-
-    /// Appends `v` in decimal.
-    #[must_use]
-    pub fn u32(mut self, v: u32) -> Self {
-        // Largest power of ten not above v (1 for 0), then one digit per power.
-        let mut p = 1u32;
-        while p <= v / 10 {
-            p = p.saturating_mul(10);
-        }
-        loop {
-            self.byte(b'0' + (v.checked_div(p).unwrap_or(0) % 10) as u8);
-            if p <= 1 {
-                return self;
-            }
-            p /= 10;
-        }
-    }
-
-    /// Appends `v` in decimal with a sign.
-    #[must_use]
-    pub fn i32(self, v: i32) -> Self {
-        let s = if v < 0 { self.str("-") } else { self };
-        s.u32(v.unsigned_abs())
-    }
-
-    /// The text so far.
-    pub fn as_bytes(&self) -> &[u8] {
-        self.buf.get(..self.len).unwrap_or(&[])
-    }
-
-    fn finish(mut self) -> ([u8; LINE_CAPACITY], usize) {
-        if self.len == LINE_CAPACITY {
-            self.len -= 1;
-        }
-        if let Some(slot) = self.buf.get_mut(self.len) {
-            *slot = b'\n';
-            self.len += 1;
-        }
-        (self.buf, self.len)
-    }
-
-    /// Writes the line and a newline to the host's standard output (one semihosting call).
-    pub fn print(self) {
-        let (buf, len) = self.finish();
-        write_stdout(buf.get(..len).unwrap_or(&[]));
-    }
-
-    /// Writes the line and a newline to the host's standard error (one semihosting call).
-    pub fn eprint(self) {
-        let (buf, len) = self.finish();
-        write_stderr(buf.get(..len).unwrap_or(&[]));
-    }
 }
 
 /// Semihosting handles of the host's standard output and error, opened once (every
 /// `hio::hstdout()` call opens a new host file handle).
-static STREAMS: critical_section::Mutex<core::cell::Cell<[Option<HostStream>; 2]>> =
-    critical_section::Mutex::new(core::cell::Cell::new([None, None]));
+static STREAMS: critical_section::Mutex<Cell<[Option<HostStream>; 2]>> =
+    critical_section::Mutex::new(Cell::new([None, None]));
 
 fn write_stream(which: usize, bytes: &[u8]) {
     critical_section::with(|cs| {
@@ -209,12 +69,116 @@ fn write_stream(which: usize, bytes: &[u8]) {
     });
 }
 
-/// Writes raw bytes to the host's standard output over semihosting (no formatting code).
+/// Writes raw bytes to the host's standard output over semihosting (the candump log).
 pub fn write_stdout(bytes: &[u8]) {
     write_stream(0, bytes);
 }
 
-/// Writes raw bytes to the host's standard error over semihosting (no formatting code).
-pub fn write_stderr(bytes: &[u8]) {
+/// Writes raw bytes to the host's standard error over semihosting (the defmt stream).
+fn write_stderr(bytes: &[u8]) {
     write_stream(1, bytes);
+}
+
+/// Bytes of encoded log collected before one semihosting write: a semihosting call per encoder
+/// write would be one host round trip per few bytes.
+const LOG_BUF: usize = 64;
+
+/// The defmt logger state: taken flag, the critical section held while a frame is written, the
+/// frame encoder and the output buffer.
+struct SemihostingLogger {
+    taken: AtomicBool,
+    restore: UnsafeCell<critical_section::RestoreState>,
+    encoder: UnsafeCell<defmt::Encoder>,
+    buf: UnsafeCell<([u8; LOG_BUF], usize)>,
+}
+
+// SAFETY: every access to the cells happens between `acquire` and `release`, inside the critical
+// section `acquire` enters (single core), and `taken` refuses re-entry.
+unsafe impl Sync for SemihostingLogger {}
+
+static LOGGER: SemihostingLogger = SemihostingLogger {
+    taken: AtomicBool::new(false),
+    restore: UnsafeCell::new(critical_section::RestoreState::invalid()),
+    encoder: UnsafeCell::new(defmt::Encoder::new()),
+    buf: UnsafeCell::new(([0; LOG_BUF], 0)),
+};
+
+impl SemihostingLogger {
+    /// Appends encoded bytes, writing the buffer out whenever it fills.
+    ///
+    /// # Safety
+    /// Only between `acquire` and `release` (the logger's critical section).
+    unsafe fn push(&self, bytes: &[u8]) {
+        // SAFETY: exclusive by the caller's contract.
+        let (buf, len) = unsafe { &mut *self.buf.get() };
+        for &b in bytes {
+            if let Some(slot) = buf.get_mut(*len) {
+                *slot = b;
+                *len += 1;
+            }
+            if *len == LOG_BUF {
+                write_stderr(buf);
+                *len = 0;
+            }
+        }
+    }
+
+    /// Writes out what the buffer holds.
+    ///
+    /// # Safety
+    /// Only between `acquire` and `release`.
+    unsafe fn drain(&self) {
+        // SAFETY: exclusive by the caller's contract.
+        let (buf, len) = unsafe { &mut *self.buf.get() };
+        write_stderr(buf.get(..*len).unwrap_or(&[]));
+        *len = 0;
+    }
+}
+
+#[defmt::global_logger]
+struct Logger;
+
+// SAFETY: `acquire` enters a critical section and refuses re-entry; the other methods are only
+// called by defmt between `acquire` and `release`, inside that section.
+unsafe impl defmt::Logger for Logger {
+    fn acquire() {
+        // SAFETY: paired with the `critical_section::release` in `release`.
+        let restore = unsafe { critical_section::acquire() };
+        if LOGGER.taken.swap(true, Ordering::Relaxed) {
+            // Only a panic while a frame is being written gets here (the critical section keeps
+            // interrupts out): the panic handler's own log line. Fail the run without it rather
+            // than panic again.
+            exit(false)
+        }
+        // SAFETY: inside the critical section, logger taken.
+        unsafe {
+            LOGGER.restore.get().write(restore);
+            let encoder = &mut *LOGGER.encoder.get();
+            encoder.start_frame(|b| LOGGER.push(b));
+        }
+    }
+
+    unsafe fn flush() {
+        // SAFETY: called between acquire and release.
+        unsafe { LOGGER.drain() };
+    }
+
+    unsafe fn release() {
+        // SAFETY: called once after acquire, inside its critical section.
+        unsafe {
+            let encoder = &mut *LOGGER.encoder.get();
+            encoder.end_frame(|b| LOGGER.push(b));
+            LOGGER.drain();
+            LOGGER.taken.store(false, Ordering::Relaxed);
+            critical_section::release(LOGGER.restore.get().read());
+        }
+    }
+
+    unsafe fn write(bytes: &[u8]) {
+        // SAFETY: called between acquire and release.
+        unsafe {
+            let encoder = &mut *LOGGER.encoder.get();
+            encoder.write(bytes, |b| LOGGER.push(b));
+        }
+    }
 }

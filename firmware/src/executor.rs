@@ -23,8 +23,8 @@ fn pender(_context: *mut ()) {
 /// with `WFI` in between.
 pub fn run(init: impl FnOnce(Spawner)) -> ! {
     let Some(executor) = cortex_m::singleton!(: raw::Executor = raw::Executor::new(core::ptr::null_mut())) else {
-        crate::console::Text::new().str("executor::run called twice").print();
-        crate::console::exit(false);
+        // A programming error at start-up, not an input: stop there.
+        defmt::panic!("executor::run called twice");
     };
     let executor: &'static raw::Executor = executor;
     init(executor.spawner());

@@ -16,6 +16,8 @@ const FAULT_ID: &str = "18FF5080";
 fn require_qemu() -> Result<()> {
     require("qemu-system-arm")?;
     require("timeout")?;
+    // The runner (firmware/qemu-run.sh) decodes the firmware's defmt log with it.
+    require("defmt-print")?;
     let machines = stdout_of(Command::new("qemu-system-arm").args(["-machine", "help"]))?;
     if !machines.lines().any(|l| l.starts_with("mps2-an386")) {
         return Err("this qemu-system-arm has no mps2-an386 machine (QEMU >= 5.2 needed)".into());

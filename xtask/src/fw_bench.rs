@@ -64,10 +64,17 @@ fn firmware_cargo(args: &[&str], trace: Option<&str>) -> Command {
     cmd
 }
 
+/// The `bench` binary's figures: `key=value` lines of its defmt log, which the runner
+/// (`firmware/qemu-run.sh`) decodes onto standard error.
 fn bench_run(trace: Option<&str>) -> Result<Figures> {
     let mut cmd = firmware_cargo(&["run"], trace);
     cmd.args(["--bin", "bench"]);
-    Ok(Figures::parse(&stdout_of(&mut cmd)?))
+    let out = output(&mut cmd)?;
+    let log = String::from_utf8_lossy(&out.stderr).into_owned();
+    if !out.status.success() {
+        return Err(format!("bench run failed ({}):\n{log}", out.status));
+    }
+    Ok(Figures::parse(&log))
 }
 
 /// The `monitor` image's peak stack and the verdict it closed (its stderr report).
@@ -120,6 +127,9 @@ fn component(name: &str) -> &'static str {
     } else if any(&[
         "embassy",
         "_embassy",
+        "defmt",
+        "_defmt",
+        "__defmt",
         "<embassy",
         "monitor::",
         "pbm_firmware",
@@ -133,7 +143,7 @@ fn component(name: &str) -> &'static str {
         "__pre_init",
         "main",
     ]) {
-        "runtime: embassy executor + sync, tasks, vectors, console"
+        "runtime: embassy executor + sync, tasks, vectors, defmt logger, semihosting"
     } else if name.contains("compiler_builtins") || any(&["__aeabi", "__udiv", "__divmod", "__umod", "mem"]) {
         "compiler builtins: mem*, 64-bit division, f32 helpers"
     } else if any(&["core::", "<core", "<&", "<usize", "<u32", "<u64", "__rustc"]) {

@@ -17,6 +17,9 @@ const APT: [(&str, &str); 5] = [
 ];
 /// The off-the-shelf DBC tool the CAN check decodes every frame with (pinned).
 pub const CANTOOLS_VERSION: &str = "45.1.0";
+/// The defmt log decoder the QEMU runner (`firmware/qemu-run.sh`) pipes the firmware's log
+/// through (pinned; speaks the wire format of defmt 1.x).
+const DEFMT_PRINT_VERSION: &str = "1.2.0";
 
 /// Installs everything; prints one line per thing it had to do.
 pub fn install() -> Result<()> {
@@ -51,6 +54,7 @@ pub fn install() -> Result<()> {
         apt(&args)?;
     }
     cantools_venv()?;
+    defmt_print()?;
     let qemu = output(Command::new("qemu-system-arm").arg("--version"))?;
     println!("setup: {}", String::from_utf8_lossy(&qemu.stdout).lines().next().unwrap_or("qemu-system-arm"));
     Ok(())
@@ -89,4 +93,22 @@ fn cantools_venv() -> Result<()> {
     run(Command::new(&py)
         .args(["-m", "pip", "install", "--quiet", "--disable-pip-version-check"])
         .arg(format!("cantools=={CANTOOLS_VERSION}")))
+}
+
+/// `defmt-print` (the firmware's defmt log decoder) from crates.io, built with its own lock file.
+fn defmt_print() -> Result<()> {
+    let installed = output(Command::new("defmt-print").arg("--version"))
+        .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == format!("defmt-print {DEFMT_PRINT_VERSION}"));
+    if installed {
+        return Ok(());
+    }
+    println!("setup: defmt-print {DEFMT_PRINT_VERSION} (cargo install, about 3 minutes on 2 cores)");
+    run(Command::new(crate::util::cargo_bin()).args([
+        "install",
+        "--locked",
+        "--quiet",
+        "defmt-print",
+        "--version",
+        DEFMT_PRINT_VERSION,
+    ]))
 }

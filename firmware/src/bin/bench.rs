@@ -12,6 +12,7 @@
 
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m::peripheral::SYST;
+use defmt::println;
 use pbm::classifier::diagnose;
 use pbm::estimator::{EstimatorConfig, ReleaseEstimator};
 use pbm::features::{ReleaseFeatures, ReleaseSample};
@@ -21,7 +22,7 @@ use pbm::reservoir::{Reservoir, ReservoirParams};
 use pbm::{AdcCounts, BarG, KelvinQ8, Meters, PressureQ24, Twin};
 use pbm_firmware::adc::ADC_TRACE;
 use pbm_firmware::console::exit;
-use pbm_firmware::{println, stack, time_driver};
+use pbm_firmware::{stack, time_driver};
 
 /// Instructions per SysTick count under `-icount shift=0` (1 ns each) at 25 MHz.
 const INSTR_PER_COUNT: u64 = 1_000_000_000 / time_driver::CORE_CLOCK_HZ as u64;
@@ -107,8 +108,8 @@ fn main() -> ! {
     let overhead = bracket.mean();
     let (cal, ()) = measure(overhead, || known_loop(100_000));
     println!("calibration_expected_instr=300000");
-    println!("calibration_measured_instr={cal}");
-    println!("bracket_overhead_instr={overhead}");
+    println!("calibration_measured_instr={=u64}", cal);
+    println!("bracket_overhead_instr={=u64}", overhead);
 
     // The core's per-sample pipeline (the monitor task's work) over the compiled-in trace.
     let mut twin = Twin::nominal();
@@ -170,25 +171,25 @@ fn main() -> ! {
         reservoir_cost.add(measure(overhead, || reservoir.update(loaded, oil)).0);
     }
 
-    println!("samples={}", ADC_TRACE.len());
-    println!("frames={frames}");
-    println!("pipeline_instr_per_sample_mean={}", per_sample.mean());
-    println!("pipeline_instr_per_sample_max={}", per_sample.max);
-    println!("closing_sample_instr={}", closing.max);
-    println!("pipeline_max_at_sample={}", per_sample.argmax);
-    println!("pipeline_samples_over_budget={}", per_sample.over_budget);
-    println!("twin_instr_per_sample_mean={}", twin_only.mean());
-    println!("twin_instr_per_sample_max={}", twin_only.max);
-    println!("features_instr_per_sample_mean={}", features_cost.mean());
-    println!("features_instr_per_sample_max={}", features_cost.max);
-    println!("estimator_instr_per_sample_mean={}", estimator_cost.mean());
-    println!("estimator_instr_per_sample_max={}", estimator_cost.max);
-    println!("estimator_max_at_sample={}", estimator_cost.argmax);
-    println!("classify_instr={classify}");
-    println!("reservoir_instr_per_substep_mean={}", reservoir_cost.mean());
-    println!("reservoir_instr_per_substep_max={}", reservoir_cost.max);
-    println!("verdict={verdict:?}");
-    println!("static_ram_bytes={}", stack::static_ram());
-    println!("peak_stack_bytes={}", stack::peak_used());
+    println!("samples={=usize}", ADC_TRACE.len());
+    println!("frames={=usize}", frames);
+    println!("pipeline_instr_per_sample_mean={=u64}", per_sample.mean());
+    println!("pipeline_instr_per_sample_max={=u64}", per_sample.max);
+    println!("closing_sample_instr={=u64}", closing.max);
+    println!("pipeline_max_at_sample={=u64}", per_sample.argmax);
+    println!("pipeline_samples_over_budget={=u64}", per_sample.over_budget);
+    println!("twin_instr_per_sample_mean={=u64}", twin_only.mean());
+    println!("twin_instr_per_sample_max={=u64}", twin_only.max);
+    println!("features_instr_per_sample_mean={=u64}", features_cost.mean());
+    println!("features_instr_per_sample_max={=u64}", features_cost.max);
+    println!("estimator_instr_per_sample_mean={=u64}", estimator_cost.mean());
+    println!("estimator_instr_per_sample_max={=u64}", estimator_cost.max);
+    println!("estimator_max_at_sample={=u64}", estimator_cost.argmax);
+    println!("classify_instr={=u64}", classify);
+    println!("reservoir_instr_per_substep_mean={=u64}", reservoir_cost.mean());
+    println!("reservoir_instr_per_substep_max={=u64}", reservoir_cost.max);
+    println!("verdict={}", defmt::Debug2Format(&verdict));
+    println!("static_ram_bytes={=usize}", stack::static_ram());
+    println!("peak_stack_bytes={=usize}", stack::peak_used());
     exit(true)
 }

@@ -10,10 +10,10 @@
 #![no_std]
 #![no_main]
 
+use defmt::println;
 use pbm::classifier::model_weights::MODEL;
 use pbm_firmware::classifier_golden::{self, Expected, Vector};
 use pbm_firmware::console::exit;
-use pbm_firmware::println;
 
 /// The host's golden vectors, compiled into flash (≈ 0.3 MiB of text; this is a test image, not
 /// the `monitor` application with its 32 KiB budget).
@@ -25,7 +25,7 @@ const MIN_VECTORS: usize = 100;
 #[cortex_m_rt::entry]
 fn main() -> ! {
     if let Err(e) = MODEL.validate() {
-        println!("classifier-check: the compiled model is inconsistent: {e:?}");
+        println!("classifier-check: the compiled model is inconsistent: {}", defmt::Debug2Format(&e));
         exit(false)
     }
     // The self-test (feature `selftest-corrupt-golden`): the first expected logit is one higher.
@@ -35,26 +35,31 @@ fn main() -> ! {
             (cfg!(feature = "selftest-corrupt-golden"), perturbed, &mut v.expected)
         {
             if let Some(l) = logits.as_mut_slice().first_mut() {
-                println!("classifier-check: SELFTEST: expected logit 0 of line {} perturbed by +1", v.line);
+                println!("classifier-check: SELFTEST: expected logit 0 of line {=usize} perturbed by +1", v.line);
                 *l = l.wrapping_add(1);
                 perturbed = true;
             }
         }
     });
     println!(
-        "classifier-check: {} network outputs equal, {} implausible vectors rejected, {} failures",
+        "classifier-check: {=usize} network outputs equal, {=usize} implausible vectors rejected, {=usize} failures",
         summary.matched, summary.implausible, summary.failures
     );
     match summary.first_failure {
-        Some((line, Some(why))) => println!("classifier-check: first failure at line {line}: {why}"),
-        Some((line, None)) => println!("classifier-check: line {line} is not a golden vector"),
+        Some((line, Some(why))) => {
+            println!("classifier-check: first failure at line {=usize}: {}", line, defmt::Display2Format(&why))
+        }
+        Some((line, None)) => println!("classifier-check: line {=usize} is not a golden vector", line),
         None => {}
     }
     if summary.passed(MIN_VECTORS) {
         println!("classifier-check: PASS (int8 classifier equal to the host's golden vectors)");
         exit(true)
     } else {
-        println!("classifier-check: FAIL (at least {MIN_VECTORS} outputs and one implausible vector, all equal)");
+        println!(
+            "classifier-check: FAIL (at least {=usize} outputs and one implausible vector, all equal)",
+            MIN_VECTORS
+        );
         exit(false)
     }
 }

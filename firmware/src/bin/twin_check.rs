@@ -8,12 +8,13 @@
 #![no_std]
 #![no_main]
 
+use defmt::println;
 use embassy_executor::Spawner;
 use embassy_time::{Duration, Instant, Ticker};
 use pbm::{Twin, TwinParams};
-use pbm_firmware::console::{exit, GaugeBar};
+use pbm_firmware::console::exit;
 use pbm_firmware::golden::{self, Checkpoints};
-use pbm_firmware::{executor, println, time_driver};
+use pbm_firmware::{executor, time_driver};
 
 /// The host's golden values, compiled into flash.
 const GOLDEN_CSV: &str = include_str!("../../../tests/golden/nominal_checkpoints.csv");
@@ -28,7 +29,7 @@ fn main() -> ! {
     executor::run(|spawner: Spawner| match release_task() {
         Ok(token) => spawner.spawn(token),
         Err(e) => {
-            println!("twin-check: cannot spawn the release task: {e}");
+            println!("twin-check: cannot spawn the release task: {}", defmt::Debug2Format(&e));
             exit(false)
         }
     })
@@ -51,18 +52,18 @@ async fn release_task() {
     let checkpoints = match expected() {
         Ok(c) => c,
         Err(e) => {
-            println!("twin-check: bad golden file: {e}");
+            println!("twin-check: bad golden file: {}", defmt::Display2Format(&e));
             exit(false)
         }
     };
     let mut twin = match Twin::new(&TwinParams::nominal()) {
         Ok(t) => t,
         Err(e) => {
-            println!("twin-check: nominal parameters rejected: {e}");
+            println!("twin-check: nominal parameters rejected: {}", defmt::Debug2Format(&e));
             exit(false)
         }
     };
-    println!("twin-check: nominal release, 100 Hz, {} checkpoints", checkpoints.as_slice().len());
+    println!("twin-check: nominal release, 100 Hz, {=usize} checkpoints", checkpoints.as_slice().len());
     println!("t_s,updates,p_q24,x_q32,p_bar_g,expected_p_q24,expected_x_q32,result");
 
     let start = Instant::now();
@@ -79,26 +80,38 @@ async fn release_task() {
         let (p, x) = sample.map_or((0, 0), |s| (s.pressure.0, s.travel.0));
         let ok = p == cp.p_q24 && x == cp.x_q32;
         failures += u32::from(!ok);
+        let (sign, bar, micro) = gauge_bar(p);
         println!(
-            "{}.{:02},{},{},{},{},{},{},{}",
+            "{=u32}.{=u32:02},{=u32},{=i32},{=i32},{=str}{=u32}.{=u32:06},{=i32},{=i32},{=str}",
             cp.updates / 100,
             cp.updates % 100,
             cp.updates,
             p,
             x,
-            GaugeBar(p),
+            sign,
+            bar,
+            micro,
             cp.p_q24,
             cp.x_q32,
             if ok { "ok" } else { "MISMATCH" }
         );
     }
     let elapsed_ms = (Instant::now() - start).as_millis();
-    println!("twin-check: {updates} samples in {elapsed_ms} ms of simulated time");
+    println!("twin-check: {=u32} samples in {=u64} ms of simulated time", updates, elapsed_ms);
     if failures == 0 {
         println!("twin-check: PASS (all checkpoints equal the host values bit for bit)");
         exit(true)
     } else {
-        println!("twin-check: FAIL ({failures} checkpoint(s) differ from the host values)");
+        println!("twin-check: FAIL ({=u32} checkpoint(s) differ from the host values)", failures);
         exit(false)
     }
+}
+
+/// A Q7.24 absolute pressure as gauge bar: sign, whole bars and micro-bars (rounded half away
+/// from zero), integer arithmetic only.
+fn gauge_bar(p_q24: i32) -> (&'static str, u32, u32) {
+    let gauge_q24 = i64::from(p_q24) - (1i64 << 24);
+    let micro = (gauge_q24.unsigned_abs() * 1_000_000 + (1 << 23)) >> 24;
+    let sign = if gauge_q24 < 0 && micro != 0 { "-" } else { "" };
+    (sign, (micro / 1_000_000) as u32, (micro % 1_000_000) as u32)
 }
