@@ -237,10 +237,11 @@ impl CycleStats {
         self.n += 1;
         if self.n == 100 {
             defmt::info!(
-                "cycles per sample (Pipeline::step, last 100 samples): mean {=u32}, max {=u32} at sample {=u32}",
+                "cycles per sample (Pipeline::step, last 100 samples): mean {=u32}, max {=u32} at sample {=u32}; peak stack {=u32} B",
                 self.total / self.n,
                 self.max,
-                self.max_at
+                self.max_at,
+                crate::stack::peak_used() as u32
             );
             *self = Self { n: 0, total: 0, max: 0, max_at: 0 };
         }

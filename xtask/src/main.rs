@@ -9,6 +9,8 @@
 //! cargo xtask fw-can-equality   QEMU CAN frames == `host-sim replay --can-log`, byte for byte
 //! cargo xtask fw-bench [--check]  firmware cost figures -> bench/firmware.md (or check bounds)
 //! cargo xtask fw-lint           rustfmt + clippy -D warnings of the firmware workspace
+//! cargo xtask fw-board          NUCLEO-F446RE board image: rustfmt, clippy -D warnings, build,
+//!                               size against the 32 KiB / 8 KiB budget
 //! cargo xtask can-check         socketcan build, cantools decodes every frame the project emits
 //! cargo xtask report-check      `host-sim demo --quick` seen in headless Chromium
 //! cargo xtask replay-memory     peak memory of `host-sim replay` on a 63 MB trace (≤ 64 MiB)
@@ -20,6 +22,7 @@
 //! fails instead of installing it. Firmware steps go through the `fw-*` cargo aliases of
 //! `.cargo/config.toml` (one definition of how the firmware is built and run).
 
+mod board;
 mod can;
 mod firmware;
 mod fw_bench;
@@ -32,7 +35,7 @@ use std::process::ExitCode;
 use util::{cargo, step, Result};
 
 const USAGE: &str = "usage: cargo xtask <setup | test-all | demo [ARGS] | fw-qemu | fw-can-equality | \
-fw-bench [--check] | fw-lint | can-check | report-check | replay-memory | shifted-sets | sensor-fault-battery [SEED]>";
+fw-bench [--check] | fw-lint | fw-board | can-check | report-check | replay-memory | shifted-sets | sensor-fault-battery [SEED]>";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -54,6 +57,7 @@ fn main() -> ExitCode {
         ("fw-bench", []) => firmware::bench(false),
         ("fw-bench", [flag]) if flag == "--check" => firmware::bench(true),
         ("fw-lint", []) => firmware::lint(),
+        ("fw-board", []) => board::check(),
         ("can-check", []) => can::check(),
         ("report-check", []) => report::check(),
         ("replay-memory", []) => replay_memory::check(),
@@ -86,6 +90,8 @@ fn test_all() -> Result<()> {
     cargo(&["clippy", "-p", "parking-brake-monitor", "--target", firmware::TARGET, "--", "-D", "warnings"])?;
     step("firmware: rustfmt + clippy");
     firmware::lint()?;
+    step("firmware: NUCLEO-F446RE board image (rustfmt, clippy, build, size)");
+    board::check()?;
     step("CAN: socketcan build, cantools");
     can::check()?;
     step("firmware: CAN frames in QEMU equal the host's, cost within bounds");
