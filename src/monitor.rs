@@ -72,6 +72,17 @@ impl Monitor {
         Ok(Self::from_parts(Twin::nominal(), estimator))
     }
 
+    /// The monitor of the nominal brake's estimator with another twin (built from coefficients
+    /// a build script derived, [`crate::twin::TwinCoeffs::from_raw`]): the firmware's extended
+    /// twin without `f64` set-up code. The estimator keeps its nominal design constants.
+    // Inlined: the ~2.4 KiB result is built in place, not copied through the stack.
+    #[inline(always)]
+    pub fn with_twin(twin: Twin) -> Result<Self, ParamError> {
+        let estimator =
+            ReleaseEstimator::nominal(EstimatorConfig::default()).map_err(|_| ParamError::DischargeCoeff)?;
+        Ok(Self::from_parts(twin, estimator))
+    }
+
     // Inlined: the ~2.4 KiB result is built in place, not copied through the stack.
     #[inline(always)]
     fn from_parts(twin: Twin, estimator: ReleaseEstimator) -> Self {

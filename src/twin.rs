@@ -454,7 +454,91 @@ impl TwinCoeffs {
     pub fn ext_active(&self) -> bool {
         self.ext.active
     }
+
+    /// The coefficients as [`RAW_COEFFS`] integers, for [`TwinCoeffs::from_raw`]: a build
+    /// script derives an extended twin's coefficients on the host (`f64`, [`TwinCoeffs::new`])
+    /// and writes these into the firmware, which then needs no `f64` set-up code.
+    pub fn to_raw(&self) -> [i64; RAW_COEFFS] {
+        let (e, l, s) = (&self.ext, &self.ext.line, &self.ext.sensor);
+        [
+            i64::from(self.supply.0),
+            self.c_in.0,
+            self.c_leak.0,
+            self.area_per_v0.0,
+            self.kappa_area_per_v0.0,
+            self.area_n_per_bar.0,
+            self.preload.0,
+            self.spring.0,
+            self.sigma0.0,
+            self.sigma1.0,
+            self.coulomb.0,
+            self.stribeck_span.0,
+            self.inv_vs.0,
+            self.accel.0,
+            self.damping.0,
+            self.step.0,
+            i64::from(self.stroke.0),
+            i64::from(self.held_steps),
+            i64::from(e.active),
+            l.delay.0,
+            l.lag_keep.0,
+            l.lag_gap_avg.0,
+            e.heat_rate.0,
+            e.sqrt_theta_s.0,
+            e.inv_sqrt_theta_s.0,
+            s.keep.0,
+            s.ramp.0,
+            s.offset.0,
+            s.gain.0,
+            e.droop.0,
+            e.droop_ref.0,
+            e.spring_quad.0,
+            e.laminar.0,
+        ]
+    }
+
+    /// The coefficients [`TwinCoeffs::to_raw`] wrote. Only for what `to_raw` wrote from
+    /// coefficients [`TwinCoeffs::new`] accepted (its range checks are what keep the twin's
+    /// arithmetic in range; `tests` check the round trip): integers from anywhere else may make
+    /// a twin that overflows.
+    pub const fn from_raw(r: [i64; RAW_COEFFS]) -> Self {
+        Self {
+            supply: PressureQ24(r[0] as i32),
+            c_in: Q(r[1]),
+            c_leak: Q(r[2]),
+            area_per_v0: Q(r[3]),
+            kappa_area_per_v0: Q(r[4]),
+            area_n_per_bar: Q(r[5]),
+            preload: Q(r[6]),
+            spring: Q(r[7]),
+            sigma0: Q(r[8]),
+            sigma1: Q(r[9]),
+            coulomb: Q(r[10]),
+            stribeck_span: Q(r[11]),
+            inv_vs: Q(r[12]),
+            accel: Q(r[13]),
+            damping: Q(r[14]),
+            step: Q(r[15]),
+            stroke: Q(r[16] as i32),
+            held_steps: r[17] as u32,
+            ext: ExtCoeffs {
+                active: r[18] != 0,
+                line: LineCoeffs { delay: Q(r[19]), lag_keep: Q(r[20]), lag_gap_avg: Q(r[21]) },
+                heat_rate: Q(r[22]),
+                sqrt_theta_s: Q(r[23]),
+                inv_sqrt_theta_s: Q(r[24]),
+                sensor: SensorCoeffs { keep: Q(r[25]), ramp: Q(r[26]), offset: Q(r[27]), gain: Q(r[28]) },
+                droop: Q(r[29]),
+                droop_ref: Q(r[30]),
+                spring_quad: Q(r[31]),
+                laminar: Q(r[32]),
+            },
+        }
+    }
 }
+
+/// Integers in [`TwinCoeffs::to_raw`].
+pub const RAW_COEFFS: usize = 33;
 
 /// State of the twin: chamber pressure, piston travel and velocity, LuGre bristle deflection.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -1021,6 +1105,19 @@ mod tests {
         // Out-of-range pressures lose precision, never overflow.
         assert!(orifice_dp(PressureQ24(i32::MAX), PressureQ24(0), c) > Q::ZERO);
         assert!(orifice_dp(PressureQ24(i32::MIN), PressureQ24(i32::MAX), c) < Q::ZERO);
+    }
+
+    #[test]
+    fn raw_coefficients_round_trip() {
+        assert_eq!(TwinCoeffs::from_raw(TwinCoeffs::NOMINAL.to_raw()), TwinCoeffs::NOMINAL);
+        #[cfg(feature = "extensions")]
+        for m in crate::mechanism::Mechanism::ALL {
+            let d = m.descriptor();
+            let mut p = TwinParams::nominal();
+            p.ext = p.ext.with(m, 0.5 * (d.brake.valid.0 + d.brake.valid.1));
+            let Ok(c) = TwinCoeffs::new(&p) else { continue };
+            assert_eq!(TwinCoeffs::from_raw(c.to_raw()), c, "{m:?}");
+        }
     }
 
     #[test]

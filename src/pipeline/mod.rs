@@ -124,6 +124,14 @@ impl Pipeline {
         Ok(Self::with_monitor(Monitor::nominal()?))
     }
 
+    /// The pipeline with the nominal estimator and another twin ([`Monitor::with_twin`]): the
+    /// firmware's extended twin from build-time coefficients.
+    // Inlined: the ~2.4 KiB result is built in place, not copied through the stack.
+    #[inline(always)]
+    pub fn with_twin(twin: crate::Twin) -> Result<Self, ParamError> {
+        Ok(Self::with_monitor(Monitor::with_twin(twin)?))
+    }
+
     /// One 100 Hz sample: monitor, release features, diagnosis policy, transmit schedule.
     pub fn step(&mut self, adc: AdcCounts, valve_open: bool) -> PipelineStep {
         let monitor = self.monitor.update(adc, valve_open);
