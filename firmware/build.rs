@@ -88,14 +88,56 @@ fn read_adc_trace(path: &Path) -> Result<Vec<u16>, String> {
     Ok(samples)
 }
 
+/// `PBM_FW_MECHANISM` (feature `extensions`): `NAME=VALUE[,NAME=VALUE…]`, each name a
+/// `pbm::mechanism` and each value in the brake twin's valid range; written to
+/// `$OUT_DIR/mechanisms.rs` as the list the monitor's twin is built with.
+fn mechanisms(out: &Path) {
+    println!("cargo:rerun-if-env-changed=PBM_FW_MECHANISM");
+    let spec = std::env::var("PBM_FW_MECHANISM").unwrap_or_else(|_| "heat_transfer=20".to_owned());
+    let mut ext = pbm::mechanism::Extensions::NONE;
+    let mut items = String::new();
+    for item in spec.split(',').map(str::trim).filter(|i| !i.is_empty()) {
+        let parsed = item.split_once('=').and_then(|(name, value)| {
+            Some((pbm::mechanism::Mechanism::from_name(name.trim())?, value.trim().parse::<f64>().ok()?))
+        });
+        let Some((m, v)) = parsed else {
+            eprintln!("PBM_FW_MECHANISM: `{item}` is not NAME=VALUE with a mechanism of pbm::mechanism");
+            std::process::exit(1);
+        };
+        ext = ext.with(m, v);
+        write!(items, "(pbm::mechanism::Mechanism::{m:?}, {v:?}), ").unwrap();
+    }
+    let mut params = pbm::TwinParams::nominal();
+    params.ext = ext;
+    // The coefficients are derived here, on the host, in f64: the image gets integers only
+    // (`TwinCoeffs::from_raw`) and no f64 set-up code (≈ 24 KiB of soft-float and libm).
+    let raw = match pbm::twin::TwinCoeffs::new(&params) {
+        Ok(c) => c.to_raw(),
+        Err(e) => {
+            eprintln!("PBM_FW_MECHANISM={spec}: the twin rejects it: {e}");
+            std::process::exit(1);
+        }
+    };
+    let text = format!(
+        "/// The twin's mechanisms and magnitudes (`PBM_FW_MECHANISM={spec}`).\n\
+         pub const MECHANISMS: &[(pbm::mechanism::Mechanism, f64)] = &[{items}];\n\
+         /// Their twin's coefficients, derived by build.rs (`pbm::twin::TwinCoeffs::to_raw`).\n\
+         pub const TWIN_RAW: [i64; pbm::twin::RAW_COEFFS] = {raw:?};\n"
+    );
+    std::fs::write(out.join("mechanisms.rs"), text).expect("write mechanisms.rs");
+}
+
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
+    let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
+    if std::env::var_os("CARGO_FEATURE_EXTENSIONS").is_some() {
+        mechanisms(&out);
+    }
     if std::env::var_os("CARGO_FEATURE_QEMU").is_none() {
         return;
     }
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR"));
     let root = manifest.parent().expect("firmware/ sits in the repository root");
-    let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
 
     // cortex-m-rt's link.x INCLUDEs memory.x from the linker search path.
     println!("cargo:rustc-link-search={}", root.display());

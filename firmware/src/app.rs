@@ -248,13 +248,40 @@ impl CycleStats {
     }
 }
 
+/// The twin's mechanisms of the extended image (feature `extensions`), chosen at build time
+/// (`PBM_FW_MECHANISM`, checked by build.rs).
+#[cfg(feature = "extensions")]
+pub mod mechanisms {
+    include!(concat!(env!("OUT_DIR"), "/mechanisms.rs"));
+}
+
+/// The monitor's twin: the nominal brake, or (feature `extensions`) the nominal brake with the
+/// build-time mechanisms, from coefficients build.rs derived on the host.
+pub const fn twin() -> pbm::Twin {
+    #[cfg(feature = "extensions")]
+    return pbm::Twin::from_coeffs(pbm::twin::TwinCoeffs::from_raw(mechanisms::TWIN_RAW));
+    #[cfg(not(feature = "extensions"))]
+    pbm::Twin::nominal()
+}
+
+/// The monitor's pipeline: [`twin`] and the nominal estimator, from precomputed constants (no
+/// `f64` set-up code in the image).
+// Inlined: the ~2.4 KiB result is built in place, not copied through the stack.
+#[inline(always)]
+pub fn pipeline() -> Result<Pipeline, pbm::ParamError> {
+    #[cfg(feature = "extensions")]
+    return Pipeline::with_twin(twin());
+    #[cfg(not(feature = "extensions"))]
+    Pipeline::nominal()
+}
+
 /// Runs the core pipeline (monitor, diagnosis policy, CAN schedule) on every sample; returns
 /// after the end of the input (never on a board). `cycles` times each `Pipeline::step`.
 pub async fn monitor_loop<C: CycleCounter>(cycles: C) {
     // Built here, in the task's own static storage, rather than in `main` and moved in: the
     // pipeline is about 2.4 KiB and every move of it is a stack copy.
-    let Ok(mut pipeline) = Pipeline::nominal() else {
-        defmt::panic!("monitor: nominal parameters rejected");
+    let Ok(mut pipeline) = pipeline() else {
+        defmt::panic!("monitor: twin parameters rejected");
     };
     let mut stats = CycleStats { n: 0, total: 0, max: 0, max_at: 0 };
     loop {

@@ -43,13 +43,18 @@ pub fn board_size() -> Result<(u64, u64)> {
     Ok((text + data, data + bss))
 }
 
+/// Builds the board image (release).
+pub fn build() -> Result<()> {
+    cargo(&["build", "--manifest-path", MANIFEST, "--target", crate::firmware::TARGET, "--release"])
+}
+
 /// Builds the board image (release), lints it, reports its size; fails past the budget.
 pub fn check() -> Result<()> {
     require("llvm-size")?;
     let target = crate::firmware::TARGET;
     cargo(&["fmt", "--manifest-path", MANIFEST, "--", "--check"])?;
     cargo(&["clippy", "--manifest-path", MANIFEST, "--target", target, "--release", "--", "-D", "warnings"])?;
-    cargo(&["build", "--manifest-path", MANIFEST, "--target", target, "--release"])?;
+    build()?;
     let (flash, ram) = board_size()?;
     let (bound_flash, bound_ram) = (bound("BOUND_BOARD_FLASH")?, bound("BOUND_BOARD_STATIC_RAM")?);
     let versus = |v: u64, budget: u64| {

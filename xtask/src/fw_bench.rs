@@ -36,6 +36,21 @@ const RECORDED: [&str; 4] = [
     "tests/data/sensor_fault/normal_open_circuit.csv",
 ];
 
+/// The extended twin's images (feature `extensions`, issue 19 item 4): one mechanism each,
+/// chosen at build time (`PBM_FW_MECHANISM`), at a magnitude inside its plausible range.
+const EXTENDED: [&str; 10] = [
+    "sensor_offset=0.1",
+    "sensor_gain=1.05",
+    "sensor_lag=0.2",
+    "transport_delay=0.2",
+    "valve_lag=0.5",
+    "laminar_leak=0.3",
+    "progressive_spring=0.3",
+    "gas_temperature=390",
+    "heat_transfer=20",
+    "regulator_droop=0.8",
+];
+
 /// `KEY=VALUE` lines a run printed.
 struct Figures(BTreeMap<String, String>);
 
@@ -69,7 +84,19 @@ fn firmware_cargo(args: &[&str], trace: Option<&str>) -> Command {
 fn bench_run(trace: Option<&str>) -> Result<Figures> {
     let mut cmd = firmware_cargo(&["run"], trace);
     cmd.args(["--bin", "bench"]);
-    let out = output(&mut cmd)?;
+    bench_figures(&mut cmd)
+}
+
+/// The bench of the extended image with mechanism `spec` (`NAME=VALUE`).
+fn extended_bench_run(spec: &str) -> Result<Figures> {
+    let mut cmd = firmware_cargo(&["run"], None);
+    cmd.args(["--bin", "bench", "--features", "extensions"]).env("PBM_FW_MECHANISM", spec);
+    bench_figures(&mut cmd)
+}
+
+/// Runs a bench command; its decoded log's figures.
+fn bench_figures(cmd: &mut Command) -> Result<Figures> {
+    let out = output(cmd)?;
     let log = String::from_utf8_lossy(&out.stderr).into_owned();
     if !out.status.success() {
         return Err(format!("bench run failed ({}):\n{log}", out.status));
@@ -77,10 +104,14 @@ fn bench_run(trace: Option<&str>) -> Result<Figures> {
     Ok(Figures::parse(&log))
 }
 
-/// The `monitor` image's peak stack and the verdict it closed (its stderr report).
-fn monitor_run() -> Result<(u64, String)> {
+/// The `monitor` image's peak stack and the verdict it closed (its stderr report); with
+/// `extended`, of the extended image (default mechanism).
+fn monitor_run(extended: bool) -> Result<(u64, String)> {
     let mut cmd = firmware_cargo(&["run"], None);
     cmd.args(["--bin", "monitor"]);
+    if extended {
+        cmd.args(["--features", "extensions"]).env_remove("PBM_FW_MECHANISM");
+    }
     let out = output(&mut cmd)?;
     let err = String::from_utf8_lossy(&out.stderr).into_owned();
     if !out.status.success() {
@@ -184,6 +215,74 @@ fn verdict(value: u64, target: u64) -> &'static str {
     }
 }
 
+/// The extended twin's images: flash, static RAM and peak stack of the `monitor` image with
+/// feature `extensions` (the same for every mechanism: which mechanisms run is data), and the
+/// per-sample cost of each mechanism alone on the nominal trace. The report section.
+fn extended_figures() -> Result<String> {
+    let mut rows = String::new();
+    for spec in EXTENDED {
+        println!("== extended twin: bench with {spec}");
+        let f = extended_bench_run(spec)?;
+        let max = f.get("pipeline_instr_per_sample_max")?;
+        let row = format!(
+            "| `{spec}` | {} | {max} | {} | {} | {} |\n",
+            f.get("pipeline_instr_per_sample_mean")?,
+            f.get("pipeline_samples_over_budget")?,
+            f.get("twin_instr_per_sample_max")?,
+            verdict(max, TARGET_INSTR)
+        );
+        print!("{row}");
+        rows.push_str(&row);
+    }
+    println!("== extended twin: monitor image (heat_transfer=20)");
+    let (peak_stack, closed) = monitor_run(true)?;
+    let (text, data, bss) = sizes()?;
+    let (_, trace_bytes) = flash_by_component()?;
+    let flash = text + data - trace_bytes;
+    let ram = data + bss + peak_stack;
+    let over = |v: u64, budget: u64| {
+        if v <= budget {
+            format!("{} B under", budget - v)
+        } else {
+            format!("**{} B over**", v - budget)
+        }
+    };
+    Ok(format!(
+        r#"## Extended twin image (feature `extensions`)
+
+`cargo build --features extensions` with `PBM_FW_MECHANISM=NAME=VALUE[,…]` (default
+`heat_transfer=20`): the core's optional mechanisms compiled in and the monitor's twin built
+with the named ones. build.rs derives the twin's coefficients on the host
+(`TwinCoeffs::new` → `to_raw`), the image takes them with `TwinCoeffs::from_raw`: no `f64`
+set-up code (building the twin at start with `Pipeline::new` would add ≈ 16 KiB of soft-float and
+libm).
+
+| figure | extended image | target | |
+|---|---|---|---|
+| flash, `monitor` without the test trace (every mechanism: which ones run is data) | {flash} B | ≤ {TARGET_FLASH} | {v_flash} |
+| RAM = static {static_ram} B + peak stack {peak_stack} B | {ram} B | ≤ {TARGET_RAM} | {v_ram} |
+
+The `monitor` run with `heat_transfer=20`: diagnosis closed {closed}.
+
+Per sample, nominal trace, one mechanism at a time (`Pipeline::step`, instructions):
+
+| mechanism | mean | worst | over 5000 | twin alone, worst | |
+|---|---|---|---|---|---|
+{rows}
+It does not fit, on either count. Flash: the extended path (`Twin::update_extended`, the general
+pressure substep with its 128-bit products, gas temperature, sensor and line models, the drooped
+supply's bisection) adds ≈ 7.8 KiB to a 32 KiB image that has ≈ 0.5 KiB left. Time: with any
+mechanism on, the twin leaves its nominal fast path (held-piston shortcut over the substeps,
+table lookups) for the general one, five full substeps per sample: ≈ 4100 instructions per
+sample on average instead of ≈ 2100, and every worst sample above 5000 (the cheapest by ≈ 640,
+heat transfer ≈ 2.3×, regulator droop's per-substep bisection ≈ 20×).
+"#,
+        static_ram = data + bss,
+        v_flash = over(flash, TARGET_FLASH),
+        v_ram = over(ram, TARGET_RAM),
+    ))
+}
+
 /// Runs the bench; writes `bench/firmware.md` or checks the bounds.
 pub fn bench(check: bool) -> Result<()> {
     require("llvm-size")?;
@@ -195,7 +294,7 @@ pub fn bench(check: bool) -> Result<()> {
         println!("{k}={v}");
     }
     println!("== monitor application in QEMU (peak stack)");
-    let (peak_stack, closed) = monitor_run()?;
+    let (peak_stack, closed) = monitor_run(false)?;
     println!("peak stack {peak_stack} B; diagnosis closed {closed}");
 
     let mut rows = String::new();
@@ -217,6 +316,9 @@ pub fn bench(check: bool) -> Result<()> {
         print!("{row}");
         rows.push_str(&row);
     }
+    // The extended twin's image (not in --check: it does not fit the budget, see the report).
+    let extended = if check { None } else { Some(extended_figures()?) };
+
     // Leave the default build (compiled-in nominal trace) as the current artefact.
     run(&mut firmware_cargo(&["build", "--bins"], None))?;
 
@@ -266,6 +368,14 @@ pub fn bench(check: bool) -> Result<()> {
         return Ok(());
     }
 
+    // The board image's size (built by `cargo xtask fw-board`; built here if missing).
+    let (board_flash, board_ram) = match crate::board::board_size() {
+        Ok(v) => v,
+        Err(_) => {
+            crate::board::build()?;
+            crate::board::board_size()?
+        }
+    };
     let qemu = stdout_of(Command::new("qemu-system-arm").arg("--version"))?;
     let date = stdout_of(Command::new("date").args(["-u", "+%Y-%m-%d"]))?;
     let component_rows: String = components.iter().map(|(c, b)| format!("| {c} | {b} |\n")).collect();
@@ -322,7 +432,8 @@ coinciding with twin substeps while the nominal twin's piston moves.
 
 What was cut (2026-11-23, from 48008 B, nothing the monitor does removed):
 
-- the twin's optional mechanisms (`pbm::mechanism`, ≈ 4.4 KiB): the core's cargo feature
+- the twin's optional mechanisms (`pbm::mechanism`, ≈ 4.4 KiB then, ≈ 7.8 KiB today: "Extended
+  twin image" below): the core's cargo feature
   `extensions` (default, host tools) is off in the firmware, which runs only the nominal twin;
   `Twin::update` then never takes the extended path and `TwinCoeffs::new` rejects parameters
   that use a mechanism;
@@ -334,17 +445,45 @@ What was cut (2026-11-23, from 48008 B, nothing the monitor does removed):
 - the Stribeck table as `u16` up to its first zero (same values);
 - the vector table: the AN386's 32 device interrupts instead of 240 (`firmware/src/vectors.rs`);
 - `memmove` (1.5 KiB), pulled in by embassy's generic timer queue and by a send future holding a
-  frame: a fixed-slot timer queue, and a send that builds the message once there is room.
+  frame: a fixed-slot timer queue, and a send that builds the message once there is room;
+- the log text (2026-11-25, issue 19): defmt instead of a hand-made line builder, the format
+  strings in the ELF's `.defmt` section, decoded on the host: 376 B of flash (32668 → 32292 B)
+  and 1068 B of stack (no 192-byte line buffers: 3312 → 2244 B).
 
 Still in the image and candidates if the budget tightens: `libm::sqrtf` in software (≈ 0.5 KiB;
 the FPU's `VSQRT` needs an `unsafe` asm block, which the core forbids); the core at opt-level
 "z" (≈ 0.8 KiB, but the worst sample then exceeds {TARGET_INSTR} instructions).
+
+{extended}
+## Board image (NUCLEO-F446RE, `firmware/board/`)
+
+The same application with embassy-stm32's drivers (clock tree, TIM3-triggered ADC with DMA,
+bxCAN, EXTI, IWDG, TIM2 time driver), defmt over RTT and panic-probe; built by
+`cargo xtask fw-board` (and `test-all`). QEMU has no bxCAN and no STM32 clock tree: the board
+image is checked by build, clippy and size; its cycles per sample are logged by the board itself.
+
+| figure | QEMU `monitor` | board `pbm-board` | target |
+|---|---|---|---|
+| flash (text + data; QEMU without the test trace) | {flash} B | {board_flash} B | ≤ {TARGET_FLASH} |
+| static RAM (data + bss) | {static_ram} B | {board_ram} B | |
+| RAM = static + peak stack | {ram} B | peak stack logged by the board | ≤ {TARGET_RAM} |
+
+The board image is {board_over} the monitor's flash budget: the HAL's drivers and the start-up
+analog check on top of the same monitor (an STM32F446RE has 512 KiB of flash and 128 KiB of RAM).
 
 Regression bounds (`cargo xtask fw-bench --check`, run in CI by `cargo xtask test-all`) are in
 `bench/firmware-bounds.env`.
 
 Reproduce: `cargo xtask fw-bench` (or `cargo fw-bench` for the raw figures).
 "#,
+        extended = extended.unwrap_or_default(),
+        board_flash = board_flash,
+        board_ram = board_ram,
+        board_over = if board_flash > TARGET_FLASH {
+            format!("{} B over", board_flash - TARGET_FLASH)
+        } else {
+            format!("{} B under", TARGET_FLASH - board_flash)
+        },
         date = date.trim(),
         qemu = qemu.lines().next().unwrap_or("").trim(),
         cal = n("calibration_measured_instr")?,

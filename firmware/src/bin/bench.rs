@@ -17,9 +17,8 @@ use pbm::classifier::diagnose;
 use pbm::estimator::{EstimatorConfig, ReleaseEstimator};
 use pbm::features::{ReleaseFeatures, ReleaseSample};
 use pbm::mechanism::{Extensions, Mechanism};
-use pbm::pipeline::Pipeline;
 use pbm::reservoir::{Reservoir, ReservoirParams};
-use pbm::{AdcCounts, BarG, KelvinQ8, Meters, PressureQ24, Twin};
+use pbm::{AdcCounts, BarG, KelvinQ8, Meters, PressureQ24};
 use pbm_firmware::adc::ADC_TRACE;
 use pbm_firmware::console::exit;
 use pbm_firmware::{stack, time_driver};
@@ -112,11 +111,13 @@ fn main() -> ! {
     println!("bracket_overhead_instr={=u64}", overhead);
 
     // The core's per-sample pipeline (the monitor task's work) over the compiled-in trace.
-    let mut twin = Twin::nominal();
-    let Ok(mut pipeline) = Pipeline::nominal() else {
-        println!("bench: nominal parameters rejected");
+    // The monitor's own pipeline (the nominal brake, or with feature `extensions` the
+    // build-time mechanisms), and its twin alone.
+    let Ok(mut pipeline) = pbm_firmware::app::pipeline() else {
+        println!("bench: twin parameters rejected");
         exit(false)
     };
+    let mut twin = pbm_firmware::app::twin();
     let mut per_sample = Stats::default();
     let mut closing = Stats::default();
     let mut twin_only = Stats::default();
