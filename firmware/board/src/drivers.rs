@@ -12,6 +12,7 @@
 
 use core::sync::atomic::{AtomicBool, Ordering};
 
+use embassy_futures::select::{select, Either};
 use embassy_stm32::adc::{Adc, AdcChannel, Exten, RingBufferedAdc, SampleTime};
 use embassy_stm32::can::filter::MasterFilters;
 use embassy_stm32::can::{
@@ -71,6 +72,8 @@ const SUPPLY_RANGE_MV: core::ops::RangeInclusive<u32> = 4750..=5250;
 const SAMPLE_HZ: u32 = 100;
 /// Debounce time of the release-command input.
 const DEBOUNCE_MS: u64 = 20;
+/// Period at which the release-command level is re-read without an edge.
+const VALVE_POLL_MS: u64 = 100;
 /// IWDG timeout: three watchdog-loop periods (500 ms), so one missed check resets.
 const IWDG_TIMEOUT_US: u32 = 1_500_000;
 
@@ -168,6 +171,8 @@ impl BoardParts {
             embassy_stm32::triggers::TIM3_TRGO,
             Exten::RISING_EDGE,
         );
+        // `start` also sets SWSTART: one scan at once, then one on every TIM3 update. The extra
+        // first scan is sample 0, before any release command can have been seen.
         ring_adc.start();
         tim3.start();
         // The timer keeps running for the controller's life; dropping the driver would stop its
@@ -175,7 +180,6 @@ impl BoardParts {
         core::mem::forget(tim3);
 
         let valve_input = ExtiInput::new(self.valve_pin, self.valve_exti, Pull::Up, Irqs);
-        VALVE_OPEN.store(valve_input.is_low(), Ordering::Relaxed);
 
         let can = start_can(self.can, self.can_rx, self.can_tx).await;
 
@@ -283,15 +287,18 @@ impl SampleSource for TriggeredAdc {
 /// The debounced release command, written by [`debounce_valve`] and read once per sample.
 static VALVE_OPEN: AtomicBool = AtomicBool::new(false);
 
-/// Follows the release-command input: on every EXTI edge, waits [`DEBOUNCE_MS`] and takes the
-/// settled level (active low: the optocoupler pulls PA10 down while the command is on).
+/// Follows the release-command input (active low: the optocoupler pulls PA10 down while the
+/// command is on): after every EXTI edge it waits [`DEBOUNCE_MS`] for the contact to settle and
+/// takes the level. It also looks every [`VALVE_POLL_MS`] without an edge, so that a bounce
+/// that ends during the settling wait (its last edge unseen) cannot leave a stale level.
 pub async fn debounce_valve(mut input: ExtiInput<'static, embassy_stm32::mode::Async>) {
     loop {
-        input.wait_for_any_edge().await;
-        Delay::after_millis(DEBOUNCE_MS).await;
         let open = input.is_low();
         if VALVE_OPEN.swap(open, Ordering::Relaxed) != open {
             defmt::info!("release command {=str}", if open { "on" } else { "off" });
+        }
+        if let Either::First(()) = select(input.wait_for_any_edge(), Delay::after_millis(VALVE_POLL_MS)).await {
+            Delay::after_millis(DEBOUNCE_MS).await;
         }
     }
 }
