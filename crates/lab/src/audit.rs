@@ -216,6 +216,24 @@ pub fn noise_sigma(y: &[f64]) -> f64 {
     1.4826 * median(&mut dev) / 6f64.sqrt()
 }
 
+/// Lag-1 autocorrelation of the noise of `y`, from its second differences (the signal's are
+/// negligible where it is smooth): for noise with lag-1 correlation ρ (and none beyond) the
+/// second differences have lag-1 correlation r = (7ρ − 4)/(6 − 8ρ), so ρ = (6r + 4)/(7 + 8r).
+/// Differences beyond 5 robust σ (corners of the signal: the valve opening, a compressor
+/// switching) are left out. Clamped to 0..=0.99.
+pub fn noise_lag1(y: &[f64]) -> f64 {
+    let d: Vec<f64> = y.windows(3).map(|w| w[2] - 2.0 * w[1] + w[0]).collect();
+    let limit = 5.0 * noise_sigma(y) * 6f64.sqrt();
+    let pairs: Vec<(f64, f64)> =
+        d.windows(2).filter(|w| w[0].abs() <= limit && w[1].abs() <= limit).map(|w| (w[0], w[1])).collect();
+    let (sab, saa) = pairs.iter().fold((0.0, 0.0), |(sab, saa), &(a, b)| (sab + a * b, saa + 0.5 * (a * a + b * b)));
+    if pairs.len() < 10 || saa <= 0.0 {
+        return 0.0;
+    }
+    let r = (sab / saa).clamp(-0.75, 0.5);
+    ((6.0 * r + 4.0) / (7.0 + 8.0 * r)).clamp(0.0, 0.99)
+}
+
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
@@ -1663,26 +1681,33 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     })
 }
 
-/// Lag-`lag` autocorrelation of the measurement noise, pooled over every trace: the deviation of
-/// each trace from its group's mean when the group has replicates (exactly noise, whatever the
-/// model), else from its own local linear fit (±[`crate::missing_flow::HALF_WINDOW`] samples).
+/// Lag-`lag` autocorrelation of the measurement noise, pooled over every trace: from the
+/// deviation of each trace from its group's mean when the group has replicates (exactly noise,
+/// whatever the model); for a group of one trace from its second differences ([`noise_lag1`],
+/// raised to the power `lag`).
 pub fn noise_correlation(data: &AuditData, lag: usize) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
+    let (mut sum, mut weight) = (0.0, 0.0);
     for g in &data.groups {
         for t in &g.traces {
-            let e: Vec<f64> = if g.traces.len() >= 2 {
-                t.iter().zip(&g.mean).map(|(a, m)| a - m).collect()
+            let rho = if g.traces.len() < 2 {
+                noise_lag1(t).powi(lag as i32)
             } else {
-                let fit = crate::missing_flow::local_linear(t, crate::missing_flow::HALF_WINDOW);
-                t.iter().zip(&fit).map(|(a, f)| a - f.0).collect()
+                let e: Vec<f64> = t.iter().zip(&g.mean).map(|(a, m)| a - m).collect();
+                let m = e.iter().sum::<f64>() / e.len().max(1) as f64;
+                let den: f64 = e.iter().map(|v| (v - m) * (v - m)).sum();
+                let num: f64 = e.windows(lag + 1).map(|w| (w[0] - m) * (w[lag] - m)).sum();
+                if den > 0.0 {
+                    num / den
+                } else {
+                    0.0
+                }
             };
-            let m = e.iter().sum::<f64>() / e.len().max(1) as f64;
-            den += e.iter().map(|v| (v - m) * (v - m)).sum::<f64>();
-            num += e.windows(lag + 1).map(|w| (w[0] - m) * (w[lag] - m)).sum::<f64>();
+            sum += t.len() as f64 * rho;
+            weight += t.len() as f64;
         }
     }
-    if den > 0.0 {
-        num / den
+    if weight > 0.0 {
+        sum / weight
     } else {
         0.0
     }
