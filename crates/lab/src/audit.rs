@@ -1735,7 +1735,15 @@ impl AuditOutcome {
     /// - `none`: `magnitude` and `uncertainty` are `null`.
     ///
     /// `magnitudes` is always an array (empty for `none`) and `causes` lists
-    /// `{"name", "magnitude", "uncertainty", "unit"}` objects, so a reader need not branch.
+    /// `{"name", "magnitude", "uncertainty", "unit"}` objects, so a reader need not branch; a
+    /// base parameter beyond tolerance is a cause with unit [`PARAMETER_UNIT`].
+    ///
+    /// Also: `residual_to_noise` `{"base", "chosen", "noise_floor"}`, `explains_all`,
+    /// `alternatives` (candidates that fit as well, in words), `flagged` (fits that were not
+    /// credible, with the reason) and `unmodelled_flow`, one entry per configuration group:
+    /// `{"description", "max_block_z", "explained_by_terms", "terms": [{"name", "magnitude",
+    /// "unit", "knot_bar_g", "text"}], "segments": [{"t_s", "sign", "mean_g_per_s",
+    /// "inflow_ratio", "pressure_bar_g", "travel_mm", "phases", "text"}]}`.
     /// The NMSEs are SPEC §6 against the mean measured trace of each configuration group.
     pub fn to_json(&self) -> serde_json::Value {
         let mut doc = verdict_json(&VerdictJson {
