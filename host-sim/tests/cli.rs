@@ -284,8 +284,12 @@ fn audit_refuses_what_is_no_release_and_warns_about_unknown_metadata() {
     assert!(stdout.contains("cause:") && !stdout.contains("NaN") && !stdout.contains("inf"), "{stdout}");
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let warnings = v["warnings"].as_array().expect("warnings array");
-    assert_eq!(warnings.len(), 1, "{v}");
+    assert_eq!(warnings.len(), 2, "{v}");
     assert!(warnings[0].as_str().unwrap().contains("sensor_supply_v"));
+    // The skipped trace is in the JSON as well (an independent tester found it only on stderr).
+    assert!(
+        warnings[1].as_str().unwrap().starts_with("skipped: ") && warnings[1].as_str().unwrap().contains("zero.csv")
+    );
 }
 
 #[test]

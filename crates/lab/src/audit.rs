@@ -564,6 +564,25 @@ fn at_bound_flag(effect: Mechanism, u: f64) -> Option<String> {
     ))
 }
 
+/// Why magnitude `v` of `effect` is physically incredible although the search allows it (the
+/// search is wide so that degenerate directions can be followed): supply air colder than
+/// −40 °C.
+fn physically_incredible(effect: Mechanism, v: f64) -> Option<String> {
+    (effect == Mechanism::GasTemperature && v < GAS_TEMPERATURE_CREDIBLE_K)
+        .then(|| format!("{effect} = {v:.0} K is supply air colder than {:.0} °C", GAS_TEMPERATURE_CREDIBLE_K - 273.15))
+}
+
+/// The coldest supply air an audit names, K (−40 °C, the coldest service temperature of rail
+/// equipment in EN 50155's widest class).
+pub const GAS_TEMPERATURE_CREDIBLE_K: f64 = 233.15;
+
+/// A candidate that lowers the weighted RSS but raises the NMSE against the measured mean (it
+/// trades a better fit of the noisy samples for a worse curve) is no explanation.
+fn worse_nmse_flag(c: &CandidateFit, base: &CandidateFit) -> Option<String> {
+    (c.nmse_pct >= base.nmse_pct)
+        .then(|| format!("it makes the NMSE worse ({:.3} % → {:.3} %)", base.nmse_pct, c.nmse_pct))
+}
+
 /// A candidate with its magnitudes in words.
 fn candidate_text(c: &CandidateFit) -> String {
     if let Some((name, scale, sd)) = c.parameter {
@@ -1269,6 +1288,9 @@ pub struct AuditOutcome {
     /// RMS of the base and the chosen model's residual in units of the noise σ of the mean
     /// release (1 = at the noise floor; see [`NOISE_FLOOR_RATIO`]).
     pub residual_to_noise: (f64, f64),
+    /// The worst 1 s window's RMS residual of the base and the chosen model, in noise σ of the
+    /// mean release ([`WINDOW_FLOOR_RATIO`]).
+    pub window_to_noise: (f64, f64),
     /// Warnings about the input ([`AuditData::warnings`]).
     pub warnings: Vec<String>,
     /// The unmodelled flow the base model leaves, per configuration group (where the model is
@@ -1281,6 +1303,13 @@ pub struct AuditOutcome {
 /// 8–16 times the noise in NMSE. Above it the verdict is `unexplained` when no candidate is
 /// chosen, and a chosen cause is reported as explaining only part of the discrepancy.
 pub const NOISE_FLOOR_RATIO: f64 = 2.0;
+
+/// Samples of the windows of [`AuditOutcome::window_to_noise`] (1 s).
+pub const WINDOW_SAMPLES: usize = 100;
+/// Largest RMS residual of any 1 s window, in noise σ of the mean release, that a model may
+/// leave and still be at the noise floor. Clean releases (our plant, the independent plants)
+/// leave at most ≈ 1.5.
+pub const WINDOW_FLOOR_RATIO: f64 = 3.0;
 
 /// Unit of a base parameter beyond tolerance in verdicts.
 pub const PARAMETER_UNIT: &str = "× documented";
@@ -1466,40 +1495,45 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         b.delta_bic = 0.0;
         b
     };
-    let mut ranking: Vec<CandidateFit> = fits
-        .iter()
-        .map(|(effects, lm, evals)| {
-            let name = effects.iter().map(|e| e.name()).collect::<Vec<_>>().join("+");
-            let mut c = mk(name, effects, lm, *evals);
-            c.delta_bic = dbic(base_lm.rss, lm.rss, effects.len());
-            // 1-σ from s² (JᵀJ)⁻¹, s² = RSS/(n − k) inflated for correlation.
-            let dims = lm.x.len();
-            let s2 = lm.rss / (n.saturating_sub(dims).max(1)) as f64 * inflation;
-            let diag = inverse_diag(&lm.jtj, dims);
-            for (i, eff) in c.effects.iter_mut().enumerate() {
-                let g = nb + i;
-                let slope = effect_slope(eff.0, lm.x[g]).abs();
-                eff.2 = if cf_degenerate(effects) && eff.0 == Mechanism::GasTemperature {
-                    // Cf and T are one direction: the statistical part with Cf held, plus the
-                    // Cf tolerance (uniform ± BASE_SPREAD, T ∝ Cf⁻²) as a prior uncertainty.
-                    let stat = (s2 / lm.jtj[g * dims + g].max(1e-300)).sqrt() * slope;
-                    let prior = eff.1 * 2.0 * BASE_SPREAD / 3f64.sqrt();
-                    stat.hypot(prior)
-                } else {
-                    (diag[g] * s2).max(0.0).sqrt() * slope
-                };
-            }
-            c.flag = effects.iter().enumerate().find_map(|(i, &e)| at_bound_flag(e, lm.x[nb + i])).or_else(|| {
-                // A magnitude the data do not determine (1 σ as large as its distance from
-                // "off") is no finding either.
-                c.effects
+    let mut ranking: Vec<CandidateFit> =
+        fits.iter()
+            .map(|(effects, lm, evals)| {
+                let name = effects.iter().map(|e| e.name()).collect::<Vec<_>>().join("+");
+                let mut c = mk(name, effects, lm, *evals);
+                c.delta_bic = dbic(base_lm.rss, lm.rss, effects.len());
+                // 1-σ from s² (JᵀJ)⁻¹, s² = RSS/(n − k) inflated for correlation.
+                let dims = lm.x.len();
+                let s2 = lm.rss / (n.saturating_sub(dims).max(1)) as f64 * inflation;
+                let diag = inverse_diag(&lm.jtj, dims);
+                for (i, eff) in c.effects.iter_mut().enumerate() {
+                    let g = nb + i;
+                    let slope = effect_slope(eff.0, lm.x[g]).abs();
+                    eff.2 = if cf_degenerate(effects) && eff.0 == Mechanism::GasTemperature {
+                        // Cf and T are one direction: the statistical part with Cf held, plus the
+                        // Cf tolerance (uniform ± BASE_SPREAD, T ∝ Cf⁻²) as a prior uncertainty.
+                        let stat = (s2 / lm.jtj[g * dims + g].max(1e-300)).sqrt() * slope;
+                        let prior = eff.1 * 2.0 * BASE_SPREAD / 3f64.sqrt();
+                        stat.hypot(prior)
+                    } else {
+                        (diag[g] * s2).max(0.0).sqrt() * slope
+                    };
+                }
+                c.flag = effects
                     .iter()
-                    .find(|(e, v, sd)| *sd >= (v - e.off()).abs())
-                    .map(|(e, v, sd)| format!("{e} = {v:.3} ± {sd:.3} {} is not determined by the data", e.unit()))
-            });
-            c
-        })
-        .collect();
+                    .enumerate()
+                    .find_map(|(i, &e)| at_bound_flag(e, lm.x[nb + i]))
+                    .or_else(|| {
+                        // A magnitude the data do not determine (1 σ as large as its distance from
+                        // "off") is no finding either.
+                        c.effects.iter().find(|(e, v, sd)| *sd >= (v - e.off()).abs()).map(|(e, v, sd)| {
+                            format!("{e} = {v:.3} ± {sd:.3} {} is not determined by the data", e.unit())
+                        })
+                    })
+                    .or_else(|| c.effects.iter().find_map(|&(e, v, _)| physically_incredible(e, v)))
+                    .or_else(|| worse_nmse_flag(&c, &base));
+                c
+            })
+            .collect();
     for (w, lm, evals) in &wide_fits {
         let wprob = Problem { data, spread: wide_box(w) };
         let u = lm.x[w.index];
@@ -1531,6 +1565,9 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
             parameter: Some((w.name, scale, sigma)),
             flag,
         });
+    }
+    for c in ranking.iter_mut().filter(|c| c.parameter.is_some() && c.flag.is_none()) {
+        c.flag = worse_nmse_flag(c, &base);
     }
     ranking.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
 
@@ -1598,11 +1635,6 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     if !(residual_to_noise.0.is_finite() && residual_to_noise.1.is_finite()) {
         bail!("{}: the fit gave no finite residual: these releases cannot be audited", data.source);
     }
-    let cause = match (terms(&chosen) == 0, residual_to_noise.0 <= NOISE_FLOOR_RATIO) {
-        (true, true) => "none".to_owned(),
-        (true, false) => "unexplained".to_owned(),
-        (false, _) => chosen.name.clone(),
-    };
     let chosen_x: Vec<f64> =
         chosen.base_u.iter().copied().chain(chosen.effects.iter().map(|&(e, v, _)| effect_u(e, v))).collect();
     let chosen_effects: Vec<Mechanism> = chosen.effects.iter().map(|e| e.0).collect();
@@ -1628,6 +1660,29 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
             base_travel: b.1.clone(),
         })
         .collect::<Vec<_>>();
+    // The worst 1 s window of each model's residual, in noise σ of the mean release: an RMS over
+    // the whole release hides a short event (a sticky spot mid-stroke left 1.7× overall and
+    // 17× at its peak).
+    let window_to_noise = |preds: &[(Vec<f64>, Vec<f64>)]| {
+        data.groups
+            .iter()
+            .zip(preds)
+            .flat_map(|(g, (p, _))| {
+                let res: Vec<f64> = g.mean.iter().zip(p).map(|(m, p)| (m - p) / g.sigma_mean).collect();
+                res.chunks(WINDOW_SAMPLES)
+                    .filter(|c| c.len() == WINDOW_SAMPLES)
+                    .map(|c| (c.iter().map(|v| v * v).sum::<f64>() / c.len() as f64).sqrt())
+                    .collect::<Vec<_>>()
+            })
+            .fold(0.0, f64::max)
+    };
+    let window_to_noise = (window_to_noise(&base_preds), window_to_noise(&chosen_preds));
+    let at_floor = residual_to_noise.0 <= NOISE_FLOOR_RATIO && window_to_noise.0 <= WINDOW_FLOOR_RATIO;
+    let cause = match (terms(&chosen) == 0, at_floor) {
+        (true, true) => "none".to_owned(),
+        (true, false) => "unexplained".to_owned(),
+        (false, _) => chosen.name.clone(),
+    };
     let per_trace = |preds: &[(Vec<f64>, Vec<f64>)]| {
         let v: Vec<f64> = data
             .groups
@@ -1678,6 +1733,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         n_eff,
         n,
         residual_to_noise,
+        window_to_noise,
     })
 }
 
@@ -1765,6 +1821,12 @@ impl AuditOutcome {
             "noise_floor": NOISE_FLOOR_RATIO,
         });
         doc["explains_all"] = serde_json::Value::Bool(self.explains_all());
+        doc["window_to_noise"] = serde_json::json!({
+            "base": self.window_to_noise.0,
+            "chosen": self.window_to_noise.1,
+            "window_s": WINDOW_SAMPLES as f64 * SAMPLE_PERIOD_S,
+            "noise_floor": WINDOW_FLOOR_RATIO,
+        });
         doc["alternatives"] = serde_json::json!(self.alternatives);
         doc["flagged"] = serde_json::json!(self.flagged);
         doc["unmodelled_flow"] = serde_json::json!(self.missing.iter().map(reconstruction_json).collect::<Vec<_>>());
@@ -1774,7 +1836,7 @@ impl AuditOutcome {
 
     /// Whether the chosen model (the base for `none`) leaves only noise.
     pub fn explains_all(&self) -> bool {
-        self.residual_to_noise.1 <= NOISE_FLOOR_RATIO
+        self.residual_to_noise.1 <= NOISE_FLOOR_RATIO && self.window_to_noise.1 <= WINDOW_FLOOR_RATIO
     }
 
     /// The verdict in one sentence, with its evidence.
@@ -1784,6 +1846,11 @@ impl AuditOutcome {
             "none" => format!(
                 "none: the base model is consistent with the noise (residual {base:.1}× the noise σ of the mean \
                  release, floor {NOISE_FLOOR_RATIO})"
+            ),
+            "unexplained" if base <= NOISE_FLOOR_RATIO => format!(
+                "unexplained: the base model's residual is {base:.1}× the noise overall but {:.1}× in its worst 1 s \
+                 (floor {WINDOW_FLOOR_RATIO}): a short event no mechanism of the library explains",
+                self.window_to_noise.0
             ),
             "unexplained" => format!(
                 "unexplained: the base model's residual is {base:.1}× the noise (floor {NOISE_FLOOR_RATIO}) and no \
@@ -1799,6 +1866,12 @@ impl AuditOutcome {
                 };
                 if self.explains_all() {
                     format!("{what}: explains the discrepancy (residual {base:.1}× → {chosen:.1}× the noise)")
+                } else if chosen <= NOISE_FLOOR_RATIO {
+                    format!(
+                        "{what} explains most of the discrepancy (residual {base:.1}× → {chosen:.1}× the noise) but \
+                         leaves {:.1}× in its worst 1 s (floor {WINDOW_FLOOR_RATIO}): a short event is missing too",
+                        self.window_to_noise.1
+                    )
                 } else {
                     format!(
                         "{what} explains part of the discrepancy (residual {base:.1}× → {chosen:.1}× the noise, floor \
@@ -1901,6 +1974,12 @@ impl AuditOutcome {
                 let _ = writeln!(s, "  terms explain {:.0} % of the excess", 100.0 * m.explained);
             }
         }
+        let _ = writeln!(
+            s,
+            "residual in noise σ: base {:.2}, chosen {:.2} (floor {NOISE_FLOOR_RATIO}); worst 1 s window: base {:.2}, \
+             chosen {:.2} (floor {WINDOW_FLOOR_RATIO})",
+            self.residual_to_noise.0, self.residual_to_noise.1, self.window_to_noise.0, self.window_to_noise.1
+        );
         let _ = writeln!(s, "verdict: {}", self.verdict_text());
         s
     }
