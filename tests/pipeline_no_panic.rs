@@ -11,7 +11,13 @@
 //! fault is known whose evidence began before the diagnosis closed (issue 15).
 
 use pbm::can::reporter::FAULT_MIN_GAP_SAMPLES;
-use pbm::can::{decode_frame, Report};
+use pbm::can::{FrameError, Identity, Report};
+
+/// Decodes a frame of the pipeline (locomotive 0) in whichever release it belongs to.
+fn decode_frame(f: &pbm::can::CanFrame) -> Result<(Report, u16), FrameError> {
+    let any = |release| pbm::can::decode_frame(f, Identity { locomotive: 0, release });
+    (1..64).map(any).find(Result::is_ok).unwrap_or_else(|| any(0))
+}
 use pbm::pipeline::{Pipeline, DIAGNOSIS_WINDOW_SAMPLES};
 use pbm::report::Verdict;
 use pbm::sensor::adc_from_bar;
