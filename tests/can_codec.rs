@@ -486,22 +486,23 @@ fn heartbeat_loss_and_restart() {
         let r = d.receive(u64::from(c) * 1_000_000, &status(100 + c, 3));
         assert!(r.result.is_ok() && r.heartbeat_lost_us.is_none(), "{r:?}");
     }
-    // The sender restarts (counter 0) after a silence of 5 s: lost, new session, accepted.
-    let r = d.receive(14_000_000, &status(0, 3));
+    // The sender restarts (counter 0, a new release number for the power-up) after a silence
+    // of 5 s: lost, new session, accepted.
+    let r = d.receive(14_000_000, &status(0, 4));
     assert_eq!(r.heartbeat_lost_us, Some(5_000_000));
     assert!(r.result.is_ok(), "{r:?}");
-    assert!(d.receive(15_000_000, &status(1, 3)).result.is_ok());
-    // A restart is only plausible for counters up to the silence: a frame from before it
-    // (counter 105) after a 4 s silence is stale.
-    let r = d.receive(19_500_000, &status(105, 3));
+    assert!(d.receive(15_000_000, &status(1, 4)).result.is_ok());
+    // After another silence: a frame of the release followed before that does not continue it
+    // is a replay (stale), one of an earlier release is of the wrong release.
+    let r = d.receive(19_500_000, &status(105, 4));
     assert!(r.heartbeat_lost_us.is_some());
     assert_eq!(r.result.unwrap_err().label(), "stale");
-    // An earlier release of the same locomotive after a silence: wrong release.
-    assert_eq!(d.receive(19_600_000, &status(0, 2)).result.unwrap_err().label(), "wrong_release");
+    assert_eq!(d.receive(19_600_000, &status(0, 4)).result.unwrap_err().label(), "stale");
+    assert_eq!(d.receive(19_700_000, &status(0, 3)).result.unwrap_err().label(), "wrong_release");
     // The sender went on during the silence (bus cut): its continuing heartbeat is accepted.
-    let r = d.receive(25_000_000, &status(11, 3));
+    let r = d.receive(20_000_000, &status(6, 4));
     assert!(r.result.is_ok(), "{r:?}");
-    assert_eq!(r.lost_status, 9);
+    assert_eq!(r.lost_status, 4);
     // Fault reports are not heartbeats: before any status they cannot be attributed.
     let mut d = Decoder::new();
     assert_eq!(d.receive(0, &encode_fault(&example_fault(), 0, ID)).result.unwrap_err().label(), "no_heartbeat");
@@ -512,23 +513,31 @@ fn heartbeat_loss_and_restart() {
     assert!(d.receive(3_500_000, &status(2, 3)).heartbeat_lost_us.is_some());
 }
 
-/// A replay of the first seconds after a restart, played after a silence, opens a tentative
-/// session; the genuine sender's continuing heartbeat supersedes it.
+/// After a silence, frames of a locomotive this receiver has never seen open a tentative
+/// session (first contact cannot be checked); the followed sender's continuing heartbeat
+/// supersedes it. Replays of the followed sender itself are flagged at once.
 #[test]
-fn continuing_heartbeat_supersedes_a_replayed_restart() {
-    let status = |c: u16| encode_status(&example_status(), link(c));
+fn continuing_heartbeat_supersedes_a_foreign_replay_after_silence() {
+    let status = |c: u16, locomotive: u8| {
+        encode_status(
+            &example_status(),
+            StatusLink { counter: c, identity: Identity { locomotive, ..ID }, fault_count: 0 },
+        )
+    };
     let mut d = Decoder::new();
     for c in 0..5u16 {
-        assert!(d.receive(u64::from(c) * 1_000_000, &status(c)).result.is_ok());
+        assert!(d.receive(u64::from(c) * 1_000_000, &status(c, 5)).result.is_ok());
     }
-    // Silence 4..9 s (an attacker holds the bus), then the boot frames replayed at 9 s and 10 s.
-    assert!(d.receive(9_000_000, &status(0)).result.is_ok());
-    // The genuine sender's frame of second 10 continues its session: the replay is superseded.
-    let r = d.receive(10_000_000, &status(10));
+    // Silence 4..9 s (an attacker holds the bus), then its own boot frame replayed: stale.
+    assert_eq!(d.receive(9_000_000, &status(0, 5)).result.unwrap_err().label(), "stale");
+    // A frame recorded on another locomotive: first contact, accepted tentatively.
+    let r = d.receive(9_500_000, &status(3, 9));
+    assert!(r.result.is_ok() && !r.superseded, "{r:?}");
+    // The followed sender's frame of second 10 continues its session: the other is superseded.
+    let r = d.receive(10_000_000, &status(10, 5));
     assert!(r.result.is_ok() && r.superseded, "{r:?}");
-    // The replayed second boot frame is now out of the session.
-    assert!(d.receive(10_100_000, &status(1)).result.is_err());
-    assert!(d.receive(11_000_000, &status(11)).result.is_ok());
+    assert_eq!(d.receive(10_500_000, &status(4, 9)).result.unwrap_err().label(), "foreign_sender");
+    assert!(d.receive(11_000_000, &status(11, 5)).result.is_ok());
 }
 
 /// A flood of frames faster than the sender's bound is flagged, the genuine rate is not.

@@ -18,22 +18,24 @@
 //! - come at least 1 s − [`TOLERANCE_US`] after the last accepted one, else
 //!   [`FrameError::RateExceeded`] (a flood, an inserted or replayed frame);
 //! - carry a newer counter (`d = n − n_last mod 4096` in `1..2048`), else [`FrameError::Stale`];
-//! - have come `d` seconds after the last accepted one, within [`TOLERANCE_US`] plus 0.1 % clock
-//!   drift, else [`FrameError::Untimely`] (delayed, or a replay at the wrong moment);
+//! - have come `d` seconds after the last accepted one, within [`TOLERANCE_US`] plus 200 ppm
+//!   clock drift, else [`FrameError::Untimely`] (delayed, or a replay at the wrong moment);
 //! - not go back in release number, else [`FrameError::WrongRelease`].
 //!
-//! `d − 1` heartbeats were lost ([`Reception::lost_status`]); fault reports the sender counted
-//! but this receiver never accepted are reported as lost too ([`Reception::lost_fault_reports`]).
+//! `d − 1` heartbeats were lost ([`Reception::lost_status`]; a fault report that arrives when a
+//! heartbeat is overdue reports it at once); fault reports the sender counted but this receiver
+//! never accepted are reported as lost too ([`Reception::lost_fault_reports`]).
 //!
 //! When no status frame was accepted for more than [`HEARTBEAT_TIMEOUT_US`] the session is lost
 //! (power cycle, bus-off, a gap between recordings): the held fault report is stale from then
-//! on. The next status frame reopens it only if it is plausible against the lost session: the
-//! same sender continuing (counter advanced as the time did) or restarted (counter not above
-//! the seconds of silence, release number not lower), or another locomotive; for each
-//! locomotive the newest release seen is remembered, and a status frame with an older one is
-//! [`FrameError::WrongRelease`]. A session reopened as a restart is tentative: a status frame
-//! that continues the lost session replaces it ([`Reception::superseded`]: the tentative frames
-//! were replays).
+//! on. The next status frame reopens it only if it is plausible: the same sender continuing
+//! (counter advanced as the time did), or a restart, which comes with a newer release number
+//! than any this receiver saw from that locomotive (the sender counts each power-up as a
+//! release) and a counter not above the seconds of silence, or a locomotive not seen before.
+//! The newest release seen is remembered per locomotive: a frame of that release that does
+//! not continue it is [`FrameError::Stale`], of an older one [`FrameError::WrongRelease`]. A
+//! session reopened after a silence is tentative: a status frame that continues the lost
+//! session replaces it ([`Reception::superseded`]: the tentative frames were replays).
 //!
 //! # Fault reports
 //!
@@ -70,12 +72,16 @@ const FAULT_REPEAT_US: u64 = 1_000_000;
 const TAU_ROUNDING_US: u64 = 50_000;
 const TAU_STEP_US: u64 = 100_000;
 const TAU_SATURATED: u16 = 4095;
+/// How much earlier than its release start predicts a fault report may come (the start was
+/// estimated from a delayed report).
+const FAULT_EARLY_US: u64 = 500_000;
 /// Heartbeat counter modulus (12 bits).
 const COUNTER_MOD: u16 = 4096;
 
-/// Clock drift allowed between sender and receiver over `dt`: 0.1 %.
+/// Clock drift allowed between sender and receiver over `dt`: 200 ppm (crystal oscillators
+/// stay within 100 ppm).
 const fn drift(dt: u64) -> u64 {
-    dt / 1000
+    dt / 5000
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -90,6 +96,10 @@ struct FaultTrack {
     start_us: i64,
     /// Its payload without CRC, counter and time: the content.
     key: u64,
+    /// Its counter.
+    counter: u8,
+    /// The release start rests on this one report (the release's first accepted).
+    single: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -98,15 +108,23 @@ struct Session {
     /// Counter and receive time of the last accepted status frame.
     counter: u16,
     at_us: u64,
+    /// When a frame with `counter` was due: the earliest receive time the accepted frames
+    /// imply (a frame that arrives early moves it earlier, a late one by clock drift only),
+    /// so a delayed frame cannot pull the session's clock after it.
+    anchor_us: i64,
     /// Receive time of the first accepted status frame with this release number.
     release_since_us: u64,
     /// Receive time of the last accepted status frame of the previous release, if seen.
     release_before_us: Option<u64>,
     /// The counter the next fault report should carry.
     next_fault: u8,
+    /// Counter of the last accepted fault report.
+    last_fault_counter: Option<u8>,
     fault: Option<FaultTrack>,
     /// Opened as a restart after a silence, not yet confirmed by a second heartbeat.
     tentative: bool,
+    /// Heartbeats found overdue (lost) by fault reports since the last accepted status frame.
+    overdue_reported: u16,
 }
 
 /// What [`Decoder::receive`] made of one frame.
@@ -242,37 +260,61 @@ impl Decoder {
                 if loco != s.identity.locomotive {
                     return Err(FrameError::ForeignSender { locomotive: loco });
                 }
-                continuation(&s, now, &link)?;
-                self.accept_status(s, now, &link, rec);
+                match continuation(&s, now, &link) {
+                    Ok(()) => self.accept_status(s, now, &link, rec),
+                    // A tentative session rests on one frame, which may itself have been early
+                    // or late (or a replay): a newer heartbeat a period or more later that does
+                    // not fit its clock replaces it.
+                    Err(FrameError::Untimely { .. })
+                        if s.tentative
+                            && link.identity.release == s.identity.release
+                            && (1..COUNTER_MOD / 2).contains(&(link.counter.wrapping_sub(s.counter) % COUNTER_MOD))
+                            && diff(now, s.at_us) >= (STATUS_PERIOD_US - TOLERANCE_US) as i64 =>
+                    {
+                        rec.superseded = true;
+                        self.open(now, &link, true, rec);
+                        if let Some(o) = self.session.as_mut() {
+                            // Keep what the receiver knows of the release and its reports.
+                            o.release_before_us = s.release_before_us;
+                            o.release_since_us = s.release_since_us;
+                            o.fault = s.fault;
+                            o.last_fault_counter = s.last_fault_counter;
+                        }
+                    }
+                    Err(e) => return Err(e),
+                }
             }
             None => {
-                // No session (start, or after a silence): open one if the frame is plausible.
-                if self.seen & (1 << loco) != 0 {
-                    let newest = self.newest_release[usize::from(loco)];
-                    if !release_not_before(link.identity.release, newest) {
-                        return Err(FrameError::WrongRelease { expected: newest, got: link.identity.release });
-                    }
-                }
-                match lost_same {
-                    // The same sender, still running: the session goes on.
-                    Some(p) if continues_lost => {
-                        self.lost = None;
+                // No session (start, or after a silence): open one only if the frame is
+                // plausible. The same sender still running continues its session; a sender
+                // that restarted comes with a newer release number (a power-up counts as one,
+                // see `CanReporter::set_identity`) and a counter not above the silence.
+                if continues_lost {
+                    if let Some(p) = self.lost.take() {
                         self.accept_status(p, now, &link, rec);
                     }
-                    // The same sender restarted: its counter cannot be above the seconds of
-                    // silence (else it is a frame from before the silence).
-                    Some(p) => {
+                } else if self.seen & (1 << loco) != 0 {
+                    let newest = self.newest_release[usize::from(loco)];
+                    let release = link.identity.release & 0x3F;
+                    if release == newest {
+                        // The release this receiver already followed, not continuing it: a
+                        // frame from before the silence.
+                        let last = lost_same.map_or(0, |p| p.counter);
+                        return Err(FrameError::Stale { last, got: link.counter });
+                    }
+                    if !release_not_before(release, newest) {
+                        return Err(FrameError::WrongRelease { expected: newest, got: release });
+                    }
+                    if let Some(p) = lost_same {
                         let silence = now.saturating_sub(p.at_us);
                         if u64::from(link.counter) * STATUS_PERIOD_US > silence + TOLERANCE_US {
                             return Err(FrameError::Stale { last: p.counter, got: link.counter });
                         }
-                        self.open(now, &link, true, rec);
                     }
-                    // First contact, or another locomotive after a silence.
-                    None => {
-                        let tentative = self.lost.is_some();
-                        self.open(now, &link, tentative, rec);
-                    }
+                    self.open(now, &link, true, rec);
+                } else {
+                    // First contact with this locomotive.
+                    self.open(now, &link, true, rec);
                 }
             }
         }
@@ -285,11 +327,14 @@ impl Decoder {
             identity,
             counter: link.counter,
             at_us: now,
+            anchor_us: diff(now, 0),
             release_since_us: now,
             release_before_us: None,
             next_fault: link.fault_count & 0xF,
+            last_fault_counter: None,
             fault: None,
             tentative,
+            overdue_reported: 0,
         });
         self.remember(link);
         rec.identity = Some(identity);
@@ -298,7 +343,8 @@ impl Decoder {
     /// Accepts a status frame that continues session `s`.
     fn accept_status(&mut self, mut s: Session, now: u64, link: &StatusLink, rec: &mut Reception) {
         let d = link.counter.wrapping_sub(s.counter) % COUNTER_MOD;
-        rec.lost_status = d.saturating_sub(1);
+        rec.lost_status = d.saturating_sub(1).saturating_sub(s.overdue_reported);
+        s.overdue_reported = 0;
         let release = link.identity.release & 0x3F;
         if release != s.identity.release {
             s.release_before_us = Some(s.at_us);
@@ -312,6 +358,9 @@ impl Decoder {
             rec.lost_fault_reports = behind;
             s.next_fault = link.fault_count & 0xF;
         }
+        let due = s.anchor_us + i64::from(d) * STATUS_PERIOD_US as i64;
+        let creep = drift(u64::from(d) * STATUS_PERIOD_US) as i64;
+        s.anchor_us = diff(now, 0).min(due + creep);
         s.counter = link.counter;
         s.at_us = now;
         s.tentative = false;
@@ -330,7 +379,11 @@ impl Decoder {
     }
 
     fn fault(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
-        let Some(mut s) = self.session else { return Err(FrameError::NoHeartbeat) };
+        // After a silence the report is judged against the session lost to it (the sender may
+        // well be alive: a fresh report of its release shows it); it does not reopen the
+        // session, only a heartbeat does.
+        let in_lost = self.session.is_none();
+        let Some(mut s) = self.session.or(self.lost) else { return Err(FrameError::NoHeartbeat) };
         let tau = l::TIME_SINCE_RELEASE.get(bits) as u16;
         let tau_us = u64::from(tau) * TAU_STEP_US;
         // Its release: the session's, or the next one if it began after the last heartbeat.
@@ -360,39 +413,93 @@ impl Decoder {
                 }
                 if f.release == identity.release {
                     if tau < f.tau || (tau == f.tau && tau != TAU_SATURATED) {
+                        if f.single && counter == f.counter.wrapping_sub(1) & 0xF && now > f.at_us {
+                            // The report the release's first accepted one skipped, arriving
+                            // after it: a reordered pair. The first came early by the pair's
+                            // distance and set the release start that much too early.
+                            let mut g = f;
+                            g.start_us += i64::from(f.tau - tau) * TAU_STEP_US as i64;
+                            g.single = false;
+                            s.fault = Some(g);
+                            self.store(s, in_lost);
+                        }
                         return Err(FrameError::Stale { last: f.tau, got: tau });
                     }
+                    // Late: more than the tolerance and the field's rounding after its time
+                    // since release says. Early (up to half a second): the release start was
+                    // set by a delayed report (it is not moved: an early report may as well be
+                    // the first of a reordered pair).
                     let since = diff(now, 0).saturating_sub(f.start_us);
                     let off = since - tau_us as i64;
                     let limit = slack + drift(since.unsigned_abs()) as i64;
-                    let saturated_ok = tau == TAU_SATURATED && off >= -limit;
-                    if off.abs() > limit && !saturated_ok {
+                    let saturated = tau == TAU_SATURATED;
+                    if (off > limit && !saturated) || off < -(FAULT_EARLY_US as i64) {
                         return Err(FrameError::Untimely { off_ms: ms(off) });
                     }
-                    FaultTrack { at_us: now, release: f.release, tau, start_us: f.start_us, key }
+                    FaultTrack {
+                        at_us: now,
+                        release: f.release,
+                        tau,
+                        start_us: f.start_us,
+                        key,
+                        counter,
+                        single: false,
+                    }
                 } else {
                     self.first_of_release(&s, identity, start, slack)?;
-                    FaultTrack { at_us: now, release: identity.release, tau, start_us: start, key }
+                    FaultTrack {
+                        at_us: now,
+                        release: identity.release,
+                        tau,
+                        start_us: start,
+                        key,
+                        counter,
+                        single: true,
+                    }
                 }
             }
             None => {
                 self.first_of_release(&s, identity, start, slack)?;
-                FaultTrack { at_us: now, release: identity.release, tau, start_us: start, key }
+                FaultTrack { at_us: now, release: identity.release, tau, start_us: start, key, counter, single: true }
             }
         };
-        let d = counter.wrapping_sub(s.next_fault) & 0xF;
-        if d >= 8 {
-            return Err(FrameError::Stale {
-                last: u16::from(s.next_fault.wrapping_sub(1) & 0xF),
-                got: u16::from(counter),
-            });
+        // Its counter must be newer than the last accepted report's, and reports the sender
+        // counted in between (status frame count, or this counter) were lost; while the
+        // 4-bit counter cannot have wrapped since (16 reports take at least 1.6 s).
+        let recent = s.fault.is_some_and(|f| diff(now, f.at_us) < (16 * FAULT_MIN_GAP_US - TOLERANCE_US) as i64);
+        if let (Some(last), true) = (s.last_fault_counter, recent) {
+            let d = counter.wrapping_sub(last) & 0xF;
+            if d == 0 || d >= 8 {
+                return Err(FrameError::Stale { last: u16::from(last), got: u16::from(counter) });
+            }
         }
-        rec.lost_fault_reports = d;
+        let d = counter.wrapping_sub(s.next_fault) & 0xF;
+        if d < 8 {
+            // (A report the status frame overtook was counted lost already.)
+            rec.lost_fault_reports = d;
+        }
         s.next_fault = (counter + 1) & 0xF;
+        s.last_fault_counter = Some(counter);
+        // Heartbeats overdue at this moment were lost (a deleted status frame is noticed even
+        // when no status frame follows before the sender stops).
+        let overdue = (now.saturating_sub(s.at_us).saturating_sub(TOLERANCE_US) / STATUS_PERIOD_US)
+            .min(u64::from(u16::MAX)) as u16;
+        if overdue > s.overdue_reported {
+            rec.lost_status = overdue - s.overdue_reported;
+            s.overdue_reported = overdue;
+        }
         s.fault = Some(track);
-        self.session = Some(s);
+        self.store(s, in_lost);
         rec.identity = Some(identity);
         Ok(report)
+    }
+
+    fn store(&mut self, s: Session, in_lost: bool) {
+        if in_lost {
+            self.lost = Some(s);
+        } else {
+            self.session = Some(s);
+        }
     }
 
     /// The first report of a release must place its release command in the window the
@@ -423,16 +530,23 @@ impl Decoder {
 /// Does this status frame continue session `s`: later than the rate allows, newer counter, as
 /// many seconds later as the counter advanced, release not going back?
 fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<(), FrameError> {
-    let dt = diff(now, s.at_us);
-    if dt < (STATUS_PERIOD_US - TOLERANCE_US) as i64 {
-        return Err(FrameError::RateExceeded { gap_ms: dt.max(0) as u32 / 1000 });
-    }
+    let gap = diff(now, s.at_us);
     let d = link.counter.wrapping_sub(s.counter) % COUNTER_MOD;
     if d == 0 || d >= COUNTER_MOD / 2 {
+        // Not newer: a copy right after (a flood) or a repetition of an older frame.
+        if gap < (STATUS_PERIOD_US - TOLERANCE_US) as i64 {
+            return Err(FrameError::RateExceeded { gap_ms: gap.max(0) as u32 / 1000 });
+        }
         return Err(FrameError::Stale { last: s.counter, got: link.counter });
     }
-    let off = dt - i64::from(d) * STATUS_PERIOD_US as i64;
-    if off.unsigned_abs() > TOLERANCE_US + drift(dt.unsigned_abs()) {
+    // Late: more than the tolerance (and clock drift) after it was due. Early: up to half a
+    // period is a session clock set by a delayed frame (it moves); more is no genuine frame.
+    let span = u64::from(d) * STATUS_PERIOD_US;
+    let off = diff(now, 0) - (s.anchor_us + span as i64);
+    if off > (TOLERANCE_US + drift(span)) as i64 || off < -((STATUS_PERIOD_US / 2) as i64) {
+        if gap < (STATUS_PERIOD_US - TOLERANCE_US) as i64 && off < 0 {
+            return Err(FrameError::RateExceeded { gap_ms: gap.max(0) as u32 / 1000 });
+        }
         return Err(FrameError::Untimely { off_ms: ms(off) });
     }
     if !release_not_before(link.identity.release, s.identity.release) {

@@ -204,9 +204,10 @@ pub const FIRMWARE_MINOR: Signal = sig("FirmwareMinor", 44, 4, 1.0, 15.0, "");
 /// The locomotive the monitor is fitted to (its number in the fleet configuration, modulo 64).
 /// Also bound into every fault report's CRC.
 pub const LOCOMOTIVE: Signal = sig("Locomotive", 48, 6, 1.0, 63.0, "");
-/// Release number: release commands the monitor has seen (a counter a controller keeps across
-/// power cycles), modulo 64; 0 before the first. The release the fault reports of this
-/// moment belong to; also bound into every fault report's CRC.
+/// Release number: release commands and power-ups the monitor has seen (a counter a
+/// controller keeps across power cycles), modulo 64. Each release, and each power cycle, has
+/// its own number: the release the fault reports of this moment belong to, and what tells a
+/// restarted sender from a replay. Also bound into every fault report's CRC.
 pub const RELEASE_NUMBER: Signal = sig("ReleaseNumber", 54, 6, 1.0, 63.0, "");
 /// Fault reports sent so far, modulo 16: the `FaultCounter` the next fault report will carry.
 /// A receiver that got fewer knows within a second that a fault report was lost.

@@ -22,8 +22,8 @@
 //! sender's [`Identity`] (locomotive, release number) and the number of fault reports sent;
 //! every fault report carries its 4-bit counter and its time since the release command, and
 //! its CRC covers the identity. The release number counts release commands
-//! ([`CanReporter::new_release`]) from the value [`CanReporter::set_identity`] gives (a
-//! controller keeps it across power cycles).
+//! ([`CanReporter::new_release`]) and power-ups ([`CanReporter::set_identity`]) from the value
+//! kept across power cycles, so each release and each power cycle has its own number.
 
 use super::codec::{encode_fault, encode_status, quantize_fault, Identity, StatusLink};
 use super::frame::CanFrame;
@@ -88,10 +88,13 @@ impl CanReporter {
         }
     }
 
-    /// The locomotive's number and the number of the last release before this start (0 for a
-    /// new controller; a controller keeps it across power cycles).
+    /// Power-up with the locomotive's number and the release number kept (in non-volatile
+    /// memory) from before it (0 for a new controller). The power-up itself counts as a new
+    /// release number, so frames after a restart can never be mistaken for frames of the
+    /// release before it; the next release command counts one more.
     pub fn set_identity(&mut self, identity: Identity) {
-        self.identity = identity.masked();
+        self.identity =
+            Identity { locomotive: identity.locomotive, release: identity.release.wrapping_add(1) }.masked();
     }
 
     /// The identity the frames carry now.

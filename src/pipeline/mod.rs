@@ -124,9 +124,10 @@ impl Pipeline {
         Ok(Self::with_monitor(Monitor::nominal()?))
     }
 
-    /// The locomotive's number and the number of its last release before this start, which the
-    /// CAN frames carry (default 0 and 0; a controller keeps the release number across power
-    /// cycles). Call before the first sample.
+    /// Power-up identity for the CAN frames: the locomotive's number and the release number
+    /// kept from before this start (a controller keeps it across power cycles; this power-up
+    /// and every release command count one more, [`CanReporter::set_identity`]). Call before
+    /// the first sample.
     pub fn set_identity(&mut self, identity: crate::can::Identity) {
         self.reporter.set_identity(identity);
     }

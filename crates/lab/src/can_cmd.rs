@@ -680,7 +680,7 @@ fn demo_releases() -> Vec<DemoRelease> {
 }
 
 /// Locomotive number of the demonstration log's monitor.
-pub const DEMO_LOCOMOTIVE: u8 = 1;
+pub const DEMO_LOCOMOTIVE: u8 = 7;
 
 /// Seconds the valve stays closed between demonstration releases.
 const DEMO_IDLE_S: f64 = 3.0;

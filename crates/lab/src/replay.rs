@@ -402,13 +402,14 @@ fn output_path(dir: &Path, name: &str, ext: &str) -> PathBuf {
 
 /// Replays one item and writes its outputs (results CSV, plot); a bad input removes what was
 /// written of them. Its CAN frames carry the locomotive number of the item's locomotive
-/// ([`pbm::can::codec::locomotive_number`]) and release number 1, as the firmware's do.
+/// ([`pbm::can::codec::locomotive_number`]) and release number 2 (power-up 1, release command
+/// 2), as the firmware's do.
 pub fn replay_item(item: &TraceItem, opts: &ReplayOptions) -> Result<TraceReplay, ReplayError> {
     replay_item_after(item, opts, 0)
 }
 
-/// [`replay_item`] for a locomotive whose monitor has already seen `earlier_releases` release
-/// commands (the release number its frames carry is one more).
+/// [`replay_item`] for a locomotive whose monitor has already seen `earlier_releases` recorded
+/// releases (each trace is a power-up and a release command: two release numbers).
 pub fn replay_item_after(
     item: &TraceItem,
     opts: &ReplayOptions,

@@ -62,9 +62,10 @@ fn demo_stream_decodes_cleanly_and_covers_every_code() {
     let (first_us, last_us) = (frames[0].0, frames.last().unwrap().0);
     assert_eq!(first_us, pbm::can::candump::LOG_EPOCH_US);
     assert_eq!(s.status_reports, (last_us - first_us) / 1_000_000 + 1);
-    // Every fault report names its locomotive and release (9 releases of locomotive 1).
-    for release in 1..=9 {
-        assert!(text.contains(&format!("loco  1 release  {release}  ")), "release {release}");
+    // Every fault report names its locomotive and release (9 releases of locomotive 7; the
+    // power-up is release number 1).
+    for release in 2..=10 {
+        assert!(text.contains(&format!("loco  7 release {release:>2}  ")), "release {release}");
     }
 }
 
@@ -254,24 +255,41 @@ fn malformed_trace_is_skipped_and_the_can_log_holds_the_rest() {
     assert_eq!(s.fault_reports, items.len() as u64 - 1, "{s}");
 }
 
-/// A monitor that restarts within the heartbeat timeout is not trusted at once: its frames are
-/// flagged (their counters go back) until the session times out (no accepted heartbeat for
-/// 3 s); then the restart is plausible (counter not above the silence) and accepted.
+/// A monitor that restarts (a new release number for the power-up, counters from 0) within the
+/// heartbeat timeout is not trusted at once: its frames are flagged (their counters go back)
+/// until the session times out (no accepted heartbeat for 3 s); then the restart is accepted.
+/// The same frames replayed (the old release number) are never accepted.
 #[test]
 fn restart_without_silence_is_flagged_then_resynchronised() {
+    use pbm::can::codec::{decode_frame, status_link};
     let clean = demo_frames();
-    // The first 10 s of the stream, then the same stream again 2 s later (a quick restart).
+    // The first 10 s of the stream, then a restart 2 s later (a quick restart).
     let t0 = clean[0].0;
     let head: Vec<(u64, CanFrame)> = clean.iter().copied().filter(|(t, _)| *t < t0 + 10_000_000).collect();
+    assert!(head.iter().all(|(_, f)| f.raw_id() == STATUS.raw_id()));
+    let restarted: Vec<(u64, CanFrame)> = head
+        .iter()
+        .map(|(t, f)| {
+            let mut link = status_link(u64::from_le_bytes(f.data().try_into().unwrap()));
+            link.identity.release += 2;
+            let Ok((pbm::can::Report::Status(s), _)) = decode_frame(f, link.identity) else { panic!() };
+            (*t, pbm::can::encode_status(&s, link))
+        })
+        .collect();
     let last = head.last().unwrap().0 - t0;
     let mut frames = head.clone();
-    frames.extend(head.iter().map(|(t, f)| (t + last + 2_000_000, *f)));
+    frames.extend(restarted.iter().map(|(t, f)| (t + last + 2_000_000, *f)));
     let (s, _) = display(&frames);
     assert_eq!(s.heartbeat_losses, 1, "{s}");
     assert!(s.flagged_total() > 0, "{s}");
-    // The same restart after a 5 s silence: accepted at once.
+    // The restart after a 5 s silence: accepted at once.
+    let mut frames = head.clone();
+    frames.extend(restarted.iter().map(|(t, f)| (t + last + 5_000_000, *f)));
+    let (s, _) = display(&frames);
+    assert_eq!((s.heartbeat_losses, s.flagged_total()), (1, 0), "{s}");
+    // The old frames again after the silence: a replay, every one flagged.
     let mut frames = head.clone();
     frames.extend(head.iter().map(|(t, f)| (t + last + 5_000_000, *f)));
     let (s, _) = display(&frames);
-    assert_eq!((s.heartbeat_losses, s.flagged_total()), (1, 0), "{s}");
+    assert_eq!(s.flagged_total(), head.len() as u64, "{s}");
 }
