@@ -240,13 +240,13 @@ fn known_answer_vectors() {
     assert_eq!(s.raw_id(), 0x18FF_5180);
     // Layout by hand: diag 1 << 12 | counter 5 << 8; confidence 90 % in bits 16..23; reason 0
     // in bits 23..27; completed 0; time 254 << 28; supply 1540 << 40; leak 850 << 52. The CRC
-    // covers data ID 0xFF50 (LE), locomotive 5, release 3, then bytes 1..7.
+    // covers data ID 0x2F50 (LE), locomotive 5, release 3, then bytes 1..7.
     let bits = (1u64 << 12) | (5 << 8) | (90 << 16) | (254 << 28) | (1540 << 40) | (850 << 52);
     let mut payload = bits.to_le_bytes();
-    let crc_input: Vec<u8> = [0x50, 0xFF, 5, 3].iter().chain(&payload[1..]).copied().collect();
+    let crc_input: Vec<u8> = [0x50, 0x2F, 5, 3].iter().chain(&payload[1..]).copied().collect();
     payload[0] = reference_crc(&crc_input);
     assert_eq!(f.data(), payload);
-    assert_eq!(f.data(), [0x7B, 0x15, 0x5A, 0xE0, 0x0F, 0x04, 0x26, 0x35]);
+    assert_eq!(f.data(), [0xDE, 0x15, 0x5A, 0xE0, 0x0F, 0x04, 0x26, 0x35]);
     // CRC-8 SAE J1850 check value: "123456789" -> 0x4B, by both implementations.
     assert_eq!(reference_crc(b"123456789"), 0x4B);
     assert_eq!(pbm::can::codec::crc8_sae_j1850(b"123456789"), 0x4B);
@@ -254,7 +254,7 @@ fn known_answer_vectors() {
     // 26, firmware 0.1 at 40/44, locomotive 5 at 48, release 3 at 54, fault count 2 at 60.
     let sb = (0x9A5u64 << 8) | (1 << 20) | (4070 << 26) | (1 << 44) | (5 << 48) | (3 << 54) | (2 << 60);
     let mut payload = sb.to_le_bytes();
-    let crc_input: Vec<u8> = [0x51, 0xFF].iter().chain(&payload[1..]).copied().collect();
+    let crc_input: Vec<u8> = [0x51, 0x2F].iter().chain(&payload[1..]).copied().collect();
     payload[0] = reference_crc(&crc_input);
     assert_eq!(s.data(), payload);
     // The core's CRC equals the crate's on random inputs.
@@ -281,13 +281,13 @@ fn invalid_signal_values_with_good_crc_are_flagged() {
     };
     let f = Some(ID);
     let cases: [(u32, u16, Option<Identity>, u64, &str); 7] = [
-        (FAULT_REPORT.raw_id(), 0xFF50, f, 6 << 12, "Diagnosis"),
-        (FAULT_REPORT.raw_id(), 0xFF50, f, 15 << 12 | 14 << 23, "NoDiagnosisReason"),
-        (FAULT_REPORT.raw_id(), 0xFF50, f, 1 << 12 | 5 << 23, "NoDiagnosisReason"),
-        (FAULT_REPORT.raw_id(), 0xFF50, f, 15 << 12, "NoDiagnosisReason"),
-        (FAULT_REPORT.raw_id(), 0xFF50, f, 15 << 12 | 3 << 23 | 7 << 16, "Confidence"),
-        (FAULT_REPORT.raw_id(), 0xFF50, f, 2 << 12 | 101 << 16, "Confidence"),
-        (STATUS.raw_id(), 0xFF51, None, 3 << 22, "SensorHealth"),
+        (FAULT_REPORT.raw_id(), 0x2F50, f, 6 << 12, "Diagnosis"),
+        (FAULT_REPORT.raw_id(), 0x2F50, f, 15 << 12 | 14 << 23, "NoDiagnosisReason"),
+        (FAULT_REPORT.raw_id(), 0x2F50, f, 1 << 12 | 5 << 23, "NoDiagnosisReason"),
+        (FAULT_REPORT.raw_id(), 0x2F50, f, 15 << 12, "NoDiagnosisReason"),
+        (FAULT_REPORT.raw_id(), 0x2F50, f, 15 << 12 | 3 << 23 | 7 << 16, "Confidence"),
+        (FAULT_REPORT.raw_id(), 0x2F50, f, 2 << 12 | 101 << 16, "Confidence"),
+        (STATUS.raw_id(), 0x2F51, None, 3 << 22, "SensorHealth"),
     ];
     for (id, data_id, identity, bits, name) in cases {
         match decode_frame(&seal(id, data_id, identity, bits), ID) {

@@ -63,7 +63,9 @@ pub struct Message {
     /// Data length in bytes.
     pub dlc: u8,
     /// E2E data ID mixed into the CRC (not transmitted), so a frame under the wrong
-    /// identifier fails its CRC.
+    /// identifier fails its CRC: the message's PGN with the layout version in the high nibble
+    /// (layout 2; layout 1 used 0xFF50 / 0xFF51), so frames of the two layouts cannot be
+    /// confused.
     pub data_id: u16,
     /// Nominal cycle time in ms (DBC attribute `GenMsgCycleTime`).
     pub cycle_ms: u16,
@@ -166,7 +168,7 @@ pub const FAULT_REPORT: Message = Message {
     name: "BPM_FaultReport",
     id: ext(0x18FF_5080),
     dlc: 8,
-    data_id: 0xFF50,
+    data_id: 0x2F50,
     cycle_ms: 1000,
     signals: &[
         FAULT_CRC,
@@ -244,7 +246,7 @@ pub const STATUS: Message = Message {
     name: "BPM_Status",
     id: ext(0x18FF_5180),
     dlc: 8,
-    data_id: 0xFF51,
+    data_id: 0x2F51,
     cycle_ms: 1000,
     signals: &[
         STATUS_CRC,

@@ -21,7 +21,7 @@ import sys
 import cantools
 import cantools.logreader
 
-DATA_IDS = {"BPM_FaultReport": 0xFF50, "BPM_Status": 0xFF51}
+DATA_IDS = {"BPM_FaultReport": 0x2F50, "BPM_Status": 0x2F51}
 # The fault report's CRC also covers the sender identity the status frame carries.
 IDENTITY_SIGNALS = ("Locomotive", "ReleaseNumber")
 CRC_SIGNAL = {"BPM_FaultReport": "FaultCrc", "BPM_Status": "StatusCrc"}
