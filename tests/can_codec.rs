@@ -161,6 +161,11 @@ proptest! {
         let mut dec = Decoder::new();
         for k in 0..3u64 {
             let rec = dec.receive(k * 1_000_000, &f);
+            // Receive clocks at the ends of the range (log time stamps go up to u64::MAX µs).
+            let mut far = dec.clone();
+            let _ = far.receive(u64::MAX - k, &f);
+            let _ = far.receive(k, &f);
+            let _ = far.receive(i64::MAX as u64 + k * 1_000_000, &f);
             if let Ok(report) = rec.result {
                 let id = rec.identity.unwrap();
                 let (again, counter) = decode_frame(&f, id).unwrap();
@@ -665,5 +670,31 @@ proptest! {
             }
         }
         prop_assert!(seen[1] >= 1, "a status frame from the first sample");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(300))]
+
+    /// Genuine frames in any order at any receive times (the whole `u64` range, backwards,
+    /// repeated): the decoder never panics (overflow checks are on in tests).
+    #[test]
+    fn decoder_never_panics_on_any_order_and_times(
+        picks in prop::collection::vec((0usize..400, any::<u64>(), 0u8..4), 1..300),
+    ) {
+        let g = genuine_stream(20);
+        let mut d = Decoder::new();
+        for (i, t, mode) in picks {
+            let (t0, f) = g[i % g.len()];
+            let time = match mode {
+                0 => t,
+                1 => t0,
+                2 => u64::MAX - (t % 10_000_000),
+                _ => t0 + t % 5_000_000,
+            };
+            let r = d.receive(time, &f);
+            // An accepted frame is always attributed.
+            prop_assert!(r.result.is_err() || r.identity.is_some());
+        }
     }
 }

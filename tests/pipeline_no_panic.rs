@@ -127,7 +127,7 @@ fn run_codes(samples: impl Iterator<Item = (bool, u16)>) -> usize {
                 // Closed by the valve falling or by the window, and then nothing is open.
                 assert!(!*valve_open || since_command >= DIAGNOSIS_WINDOW_SAMPLES, "closed early");
                 assert!(!pipe.diagnosing());
-                let reports = frames.iter().filter(|f| matches!(decode_frame(*f), Ok((Report::Fault(_), _)))).count();
+                let reports = frames.iter().filter(|f| matches!(decode_frame(f), Ok((Report::Fault(_), _)))).count();
                 // At once, unless a report went out less than the minimum gap ago.
                 let gap_open = last_fault.is_some_and(|l| sample - l < u64::from(FAULT_MIN_GAP_SAMPLES));
                 assert!(reports == 1 || gap_open, "the closed report is sent at once");

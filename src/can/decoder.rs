@@ -307,7 +307,7 @@ impl Decoder {
                     }
                     if let Some(p) = lost_same {
                         let silence = now.saturating_sub(p.at_us);
-                        if u64::from(link.counter) * STATUS_PERIOD_US > silence + TOLERANCE_US {
+                        if u64::from(link.counter) * STATUS_PERIOD_US > silence.saturating_add(TOLERANCE_US) {
                             return Err(FrameError::Stale { last: p.counter, got: link.counter });
                         }
                     }
@@ -358,9 +358,9 @@ impl Decoder {
             rec.lost_fault_reports = behind;
             s.next_fault = link.fault_count & 0xF;
         }
-        let due = s.anchor_us + i64::from(d) * STATUS_PERIOD_US as i64;
+        let due = s.anchor_us.saturating_add(i64::from(d) * STATUS_PERIOD_US as i64);
         let creep = drift(u64::from(d) * STATUS_PERIOD_US) as i64;
-        s.anchor_us = diff(now, 0).min(due + creep);
+        s.anchor_us = diff(now, 0).min(due.saturating_add(creep));
         s.counter = link.counter;
         s.at_us = now;
         s.tentative = false;
@@ -389,7 +389,7 @@ impl Decoder {
         // Its release: the session's, or the next one if it began after the last heartbeat.
         let this = s.identity;
         let next = Identity { release: (this.release + 1) & 0x3F, ..this };
-        let may_be_next = tau_us <= now.saturating_sub(s.at_us) + TOLERANCE_US + TAU_ROUNDING_US;
+        let may_be_next = tau_us <= now.saturating_sub(s.at_us).saturating_add(TOLERANCE_US + TAU_ROUNDING_US);
         let identity = match check_crc(MessageKind::Fault, bits, this) {
             Ok(()) => this,
             Err(e) if !may_be_next => return Err(e),
@@ -409,7 +409,7 @@ impl Decoder {
                 let min_gap =
                     if f.release == identity.release && f.key == key { FAULT_REPEAT_US } else { FAULT_MIN_GAP_US };
                 if gap < (min_gap - TOLERANCE_US) as i64 {
-                    return Err(FrameError::RateExceeded { gap_ms: gap.max(0) as u32 / 1000 });
+                    return Err(FrameError::RateExceeded { gap_ms: ms(gap.max(0)) as u32 });
                 }
                 if f.release == identity.release {
                     if tau < f.tau || (tau == f.tau && tau != TAU_SATURATED) {
@@ -418,7 +418,7 @@ impl Decoder {
                             // after it: a reordered pair. The first came early by the pair's
                             // distance and set the release start that much too early.
                             let mut g = f;
-                            g.start_us += i64::from(f.tau - tau) * TAU_STEP_US as i64;
+                            g.start_us = g.start_us.saturating_add(i64::from(f.tau - tau) * TAU_STEP_US as i64);
                             g.single = false;
                             s.fault = Some(g);
                             self.store(s, in_lost);
@@ -430,7 +430,7 @@ impl Decoder {
                     // set by a delayed report (it is not moved: an early report may as well be
                     // the first of a reordered pair).
                     let since = diff(now, 0).saturating_sub(f.start_us);
-                    let off = since - tau_us as i64;
+                    let off = since.saturating_sub(tau_us as i64);
                     let limit = slack + drift(since.unsigned_abs()) as i64;
                     let saturated = tau == TAU_SATURATED;
                     if (off > limit && !saturated) || off < -(FAULT_EARLY_US as i64) {
@@ -535,17 +535,17 @@ fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<(), FrameErr
     if d == 0 || d >= COUNTER_MOD / 2 {
         // Not newer: a copy right after (a flood) or a repetition of an older frame.
         if gap < (STATUS_PERIOD_US - TOLERANCE_US) as i64 {
-            return Err(FrameError::RateExceeded { gap_ms: gap.max(0) as u32 / 1000 });
+            return Err(FrameError::RateExceeded { gap_ms: ms(gap.max(0)) as u32 });
         }
         return Err(FrameError::Stale { last: s.counter, got: link.counter });
     }
     // Late: more than the tolerance (and clock drift) after it was due. Early: up to half a
     // period is a session clock set by a delayed frame (it moves); more is no genuine frame.
     let span = u64::from(d) * STATUS_PERIOD_US;
-    let off = diff(now, 0) - (s.anchor_us + span as i64);
+    let off = diff(now, 0).saturating_sub(s.anchor_us.saturating_add(span as i64));
     if off > (TOLERANCE_US + drift(span)) as i64 || off < -((STATUS_PERIOD_US / 2) as i64) {
         if gap < (STATUS_PERIOD_US - TOLERANCE_US) as i64 && off < 0 {
-            return Err(FrameError::RateExceeded { gap_ms: gap.max(0) as u32 / 1000 });
+            return Err(FrameError::RateExceeded { gap_ms: ms(gap.max(0)) as u32 });
         }
         return Err(FrameError::Untimely { off_ms: ms(off) });
     }
