@@ -43,11 +43,13 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_time::{Duration, Ticker};
 use embedded_can::blocking::Can as _;
-use pbm::can::CanFrame;
+use pbm::can::{CanFrame, Identity};
 use pbm::pipeline::Pipeline;
 use pbm::report::{FaultReport, NoDiagnosis, Verdict};
 use pbm::AdcCounts;
-use pbm_firmware::adc::{PressureAdc, TraceAdc, TraceValve, ValveCommand, ADC_TRACE, ADC_TRACE_NAME};
+use pbm_firmware::adc::{
+    PressureAdc, TraceAdc, TraceValve, ValveCommand, ADC_TRACE, ADC_TRACE_LOCOMOTIVE, ADC_TRACE_NAME,
+};
 use pbm_firmware::candump::CandumpCan;
 use pbm_firmware::console::{exit, Text};
 use pbm_firmware::{executor, stack, time_driver};
@@ -205,6 +207,9 @@ async fn monitor_task() {
         Text::new().str("monitor: nominal parameters rejected").eprint();
         exit(false)
     };
+    // The locomotive from configuration (QEMU: the trace's metadata); release number 0: QEMU
+    // has no non-volatile memory to keep it across runs.
+    pipeline.set_identity(Identity { locomotive: ADC_TRACE_LOCOMOTIVE, release: 0 });
     loop {
         match SAMPLES.receive().await {
             AdcMessage::Sample { index, adc, valve_open } => {
