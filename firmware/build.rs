@@ -127,6 +127,17 @@ fn mechanisms(out: &Path) {
     std::fs::write(out.join("mechanisms.rs"), text).expect("write mechanisms.rs");
 }
 
+/// The locomotive number of a trace's `# locomotive:` metadata line (0 without one), as
+/// `host-sim replay` reads it (`pbm::can::codec::locomotive_number`).
+fn trace_locomotive(path: &Path) -> u8 {
+    let text = std::fs::read_to_string(path).unwrap_or_default();
+    text.lines()
+        .filter_map(|l| l.trim().strip_prefix('#'))
+        .filter_map(|l| l.split_once(':'))
+        .find(|(k, _)| k.trim() == "locomotive")
+        .map_or(0, |(_, v)| pbm::can::codec::locomotive_number(v))
+}
+
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
@@ -150,24 +161,27 @@ fn main() {
     // defmt's interned strings go to the non-allocated `.defmt` section of the ELF.
     println!("cargo:rustc-link-arg-bins=-Tdefmt.x");
 
-    let (name, samples) = match std::env::var_os("PBM_FW_TRACE") {
+    let (name, samples, locomotive) = match std::env::var_os("PBM_FW_TRACE") {
         Some(p) => {
             let path = PathBuf::from(p);
             println!("cargo:rerun-if-changed={}", path.display());
             match read_adc_trace(&path) {
-                Ok(s) => (path.display().to_string(), s),
+                Ok(s) => (path.display().to_string(), s, trace_locomotive(&path)),
                 Err(e) => {
                     eprintln!("PBM_FW_TRACE: {e}");
                     std::process::exit(1);
                 }
             }
         }
-        None => ("nominal release of the core twin with transducer noise".to_string(), nominal_trace()),
+        None => ("nominal release of the core twin with transducer noise".to_string(), nominal_trace(), 0),
     };
     let mut s = String::new();
     writeln!(s, "/// Where the compiled-in trace came from.").unwrap();
     writeln!(s, "pub const ADC_TRACE_NAME: &str = {name:?};").unwrap();
     writeln!(s, "/// ADC codes of one release, 100 Hz, from the release command.").unwrap();
     writeln!(s, "pub static ADC_TRACE: [u16; {}] = {samples:?};", samples.len()).unwrap();
+    writeln!(s, "/// The locomotive number of the trace's `# locomotive:` line (0 without one), which the").unwrap();
+    writeln!(s, "/// CAN frames carry, as `host-sim replay` takes it from the same line.").unwrap();
+    writeln!(s, "pub const ADC_TRACE_LOCOMOTIVE: u8 = {locomotive};").unwrap();
     std::fs::write(out.join("adc_trace.rs"), s).expect("write adc_trace.rs");
 }

@@ -137,7 +137,8 @@ pub const MECHANISMS: [Descriptor; Mechanism::COUNT] = [
         unit: "s",
         off: 0.0,
         description:
-            "The air reaches the chamber this long after the valve is commanded (a long pipe or a pilot valve).",
+            "The air reaches the chamber this long after the valve is commanded (a long pipe or a pilot valve; \
+             a transducer that reports with a pure delay looks the same in the pressure).",
         brake: Scope {
             valid: (0.0, 10.0),
             search: (0.0, 3.0),
@@ -311,8 +312,9 @@ pub const MECHANISMS: [Descriptor; Mechanism::COUNT] = [
         name: "progressive_spring",
         unit: "ratio",
         off: 0.0,
-        description: "The spring stiffens along the stroke: at full stroke its rate is (1 + this) times the \
-                      nominal rate (conical or nested springs).",
+        description: "The spring stiffens along the stroke: at full stroke its force beyond the preload is \
+                      (1 + this) times the linear spring's, and its rate (1 + 2 × this) times the nominal \
+                      rate (conical or nested springs).",
         brake: Scope {
             valid: (-0.9, 5.0),
             search: (-0.5, 2.0),

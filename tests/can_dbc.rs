@@ -159,3 +159,58 @@ fn codec_resolutions_agree_with_the_dbc_factors() {
         }
     }
 }
+
+/// Vector / J1939 conventions, so CANdb++, CANoe and J1939 tools read the file as intended:
+/// `BusType` CAN, `ProtocolType` J1939, `VFrameFormat` J1939PG for both 29-bit messages, and
+/// `GenMsgSendType` as the standard ENUM (cyclic for the status frame,
+/// cyclicIfActiveAndTriggered for the fault report: on change, and at 1 Hz while releasing).
+#[test]
+fn dbc_follows_vector_and_j1939_conventions() {
+    use can_dbc::{AttributeDefinition, AttributeValueType};
+    let dbc = dbc();
+    let db_value = |name: &str| {
+        dbc.attribute_values_database
+            .iter()
+            .find(|a| a.name == name)
+            .map(|a| a.value.clone())
+            .unwrap_or_else(|| panic!("no database attribute {name}"))
+    };
+    assert_eq!(db_value("BusType"), AttributeValue::String("CAN".into()));
+    assert_eq!(db_value("ProtocolType"), AttributeValue::String("J1939".into()));
+    let enum_of = |name: &str| -> Vec<String> {
+        dbc.attribute_definitions
+            .iter()
+            .find_map(|d| match d {
+                AttributeDefinition::Message(n, AttributeValueType::Enum(v)) if n == name => Some(v.clone()),
+                _ => None,
+            })
+            .unwrap_or_else(|| panic!("{name} is no message ENUM attribute"))
+    };
+    let frame_formats = enum_of("VFrameFormat");
+    assert_eq!(frame_formats[..4], ["StandardCAN", "ExtendedCAN", "reserved", "J1939PG"]);
+    let send_types = enum_of("GenMsgSendType");
+    assert_eq!(
+        send_types,
+        ["cyclic", "triggered", "cyclicIfActive", "cyclicAndTriggered", "cyclicIfActiveAndTriggered", "none"]
+    );
+    let msg_value = |name: &str, m: &Message| -> usize {
+        match dbc
+            .attribute_values_message
+            .iter()
+            .find(|a| a.name == name && a.message_id == MessageId::Extended(m.raw_id()))
+            .map(|a| a.value.clone())
+        {
+            Some(AttributeValue::Uint(v)) => v as usize,
+            Some(AttributeValue::Int(v)) => v as usize,
+            other => panic!("{}: {name} {other:?}", m.name),
+        }
+    };
+    for m in layout::MESSAGES {
+        assert_eq!(frame_formats[msg_value("VFrameFormat", &m)], "J1939PG", "{}", m.name);
+    }
+    assert_eq!(send_types[msg_value("GenMsgSendType", &layout::STATUS)], "cyclic");
+    assert_eq!(send_types[msg_value("GenMsgSendType", &layout::FAULT_REPORT)], "cyclicIfActiveAndTriggered");
+    // Confidence is a clean percentage: 0..100 %, one percent per bit.
+    let conf = &layout::CONFIDENCE;
+    assert_eq!((conf.factor, conf.offset, conf.min, conf.max, conf.unit), (1.0, 0.0, 0.0, 100.0, "%"));
+}

@@ -3,7 +3,13 @@
 //! five classes and broken sensors never get a brake class, neither at the close nor in any
 //! report on the bus.
 
-use pbm::can::{decode_frame, Report};
+use pbm::can::{FrameError, Identity, Report};
+
+/// Decodes a frame of the pipeline (locomotive 0) in whichever release it belongs to.
+fn decode_frame(f: &pbm::can::CanFrame) -> Result<(Report, u16), FrameError> {
+    let any = |release| pbm::can::decode_frame(f, Identity { locomotive: 0, release });
+    (1..64).map(any).find(Result::is_ok).unwrap_or_else(|| any(0))
+}
 use pbm::pipeline::Pipeline;
 use pbm::report::Verdict;
 use pbm::{AdcCounts, FaultClass};

@@ -11,7 +11,13 @@
 //! fault is known whose evidence began before the diagnosis closed (issue 15).
 
 use pbm::can::reporter::FAULT_MIN_GAP_SAMPLES;
-use pbm::can::{decode_frame, Report};
+use pbm::can::{FrameError, Identity, Report};
+
+/// Decodes a frame of the pipeline (locomotive 0) in whichever release it belongs to.
+fn decode_frame(f: &pbm::can::CanFrame) -> Result<(Report, u16), FrameError> {
+    let any = |release| pbm::can::decode_frame(f, Identity { locomotive: 0, release });
+    (1..64).map(any).find(Result::is_ok).unwrap_or_else(|| any(0))
+}
 use pbm::pipeline::{Pipeline, DIAGNOSIS_WINDOW_SAMPLES};
 use pbm::report::Verdict;
 use pbm::sensor::adc_from_bar;
@@ -121,7 +127,7 @@ fn run_codes(samples: impl Iterator<Item = (bool, u16)>) -> usize {
                 // Closed by the valve falling or by the window, and then nothing is open.
                 assert!(!*valve_open || since_command >= DIAGNOSIS_WINDOW_SAMPLES, "closed early");
                 assert!(!pipe.diagnosing());
-                let reports = frames.iter().filter(|f| matches!(decode_frame(*f), Ok((Report::Fault(_), _)))).count();
+                let reports = frames.iter().filter(|f| matches!(decode_frame(f), Ok((Report::Fault(_), _)))).count();
                 // At once, unless a report went out less than the minimum gap ago.
                 let gap_open = last_fault.is_some_and(|l| sample - l < u64::from(FAULT_MIN_GAP_SAMPLES));
                 assert!(reports == 1 || gap_open, "the closed report is sent at once");

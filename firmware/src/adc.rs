@@ -94,7 +94,7 @@ mod trace_data {
 }
 
 #[cfg(feature = "qemu")]
-pub use trace_data::{ADC_TRACE, ADC_TRACE_NAME};
+pub use trace_data::{ADC_TRACE, ADC_TRACE_LOCOMOTIVE, ADC_TRACE_NAME};
 
 /// The driver's release command (the valve-command input), read once per sample beside the ADC.
 ///

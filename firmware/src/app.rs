@@ -276,13 +276,15 @@ pub fn pipeline() -> Result<Pipeline, pbm::ParamError> {
 }
 
 /// Runs the core pipeline (monitor, diagnosis policy, CAN schedule) on every sample; returns
-/// after the end of the input (never on a board). `cycles` times each `Pipeline::step`.
-pub async fn monitor_loop<C: CycleCounter>(cycles: C) {
+/// after the end of the input (never on a board). `cycles` times each `Pipeline::step`;
+/// `identity` is the locomotive and release number the CAN frames carry.
+pub async fn monitor_loop<C: CycleCounter>(cycles: C, identity: pbm::can::Identity) {
     // Built here, in the task's own static storage, rather than in `main` and moved in: the
     // pipeline is about 2.4 KiB and every move of it is a stack copy.
     let Ok(mut pipeline) = pipeline() else {
         defmt::panic!("monitor: twin parameters rejected");
     };
+    pipeline.set_identity(identity);
     let mut stats = CycleStats { n: 0, total: 0, max: 0, max_at: 0 };
     loop {
         match SAMPLES.receive().await {

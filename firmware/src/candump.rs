@@ -5,11 +5,12 @@
 //!
 //! The line is the core's [`pbm::can::candump::Line`], the formatter `host-sim replay
 //! --can-log` uses too, encoded by hand into a stack buffer (no `core::fmt`). Time stamps are
-//! the monitor's sample clock ([`sample_time_us`]: sample n of the input at n × 10 ms), not the
-//! wall clock, so a QEMU run and a host replay of the same trace give identical logs.
+//! the monitor's sample clock ([`sample_time_us`]: sample n of the input at n × 10 ms after the
+//! log epoch [`LOG_EPOCH_US`], an absolute time as candump writes), not the wall clock, so a
+//! QEMU run and a host replay of the same trace give identical logs.
 
 use embedded_can::ErrorKind;
-use pbm::can::candump::{sample_time_us, Line, MAX_LINE_LEN_WITHOUT_IFACE};
+use pbm::can::candump::{sample_time_us, Line, LOG_EPOCH_US, MAX_LINE_LEN_WITHOUT_IFACE};
 use pbm::can::CanFrame;
 
 /// Interface name written in every line.
@@ -47,7 +48,7 @@ impl CandumpCan {
 
     /// Sets the time stamp of the frames that follow: sample `index` of the input.
     pub fn set_sample_time(&mut self, index: u32) {
-        self.timestamp_us = sample_time_us(0, index);
+        self.timestamp_us = sample_time_us(LOG_EPOCH_US, index);
     }
 
     /// Frames written so far.

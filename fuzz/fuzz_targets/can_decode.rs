@@ -5,10 +5,11 @@
 #![no_main]
 
 use embedded_can::{ExtendedId, Frame, Id, StandardId};
-use pbm_lab::can_cmd::{decode_log, CabDisplay, DecodeFormat};
 use libfuzzer_sys::fuzz_target;
+use pbm::can::codec::status_link;
 use pbm::can::layout::{FAULT_REPORT, STATUS};
 use pbm::can::{decode_frame, encode_fault, encode_status, CanFrame, Decoder, Report};
+use pbm_lab::can_cmd::{decode_log, CabDisplay, DecodeFormat};
 
 /// Frames from bytes: a header byte (bits 0-3 length, 4 extended, 5 remote, 6-7 id choice:
 /// fault, status, or the next 4 bytes as a raw id), then the id and data bytes.
@@ -52,11 +53,14 @@ fuzz_target!(|data: &[u8]| {
     for (i, f) in frames(data).into_iter().enumerate() {
         let reception = decoder.receive(i as u64 * 1_000_000, &f);
         if let Ok(report) = reception.result {
-            let (again, counter) = decode_frame(&f).expect("stream-accepted frames decode alone");
+            let identity = reception.identity.expect("an accepted frame is attributed");
+            let (again, counter) = decode_frame(&f, identity).expect("stream-accepted frames decode alone");
             assert_eq!(again, report);
             let re = match report {
-                Report::Fault(r) => encode_fault(&r, counter),
-                Report::Status(s) => encode_status(&s, counter),
+                Report::Fault(r) => encode_fault(&r, counter as u8, identity),
+                Report::Status(s) => {
+                    encode_status(&s, status_link(u64::from_le_bytes(f.data().try_into().expect("8 bytes"))))
+                }
             };
             assert_eq!(re, f);
             assert!(f.is_extended() && f.dlc() == 8);

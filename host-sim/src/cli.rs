@@ -427,11 +427,26 @@ pub struct DecodeArgs {
     /// Output format.
     #[arg(long, value_enum, default_value_t = DecodeFormat::Text)]
     format: DecodeFormat,
+    /// Exit 1 when any frame was flagged or lost (for CI replays); the summary says what.
+    #[arg(long)]
+    strict: bool,
+    /// Check integrity only (identifier, length, CRC, signal values), not freshness: for codec
+    /// sweeps (`can demo-log --sweep`), whose frames are no stream.
+    #[arg(long)]
+    codec_only: bool,
 }
 
 impl From<DecodeArgs> for DecodeOptions {
     fn from(a: DecodeArgs) -> Self {
-        Self { file: a.file, can_iface: a.can_iface, idle_timeout: a.idle_timeout, status: a.status, format: a.format }
+        Self {
+            file: a.file,
+            can_iface: a.can_iface,
+            idle_timeout: a.idle_timeout,
+            status: a.status,
+            format: a.format,
+            strict: a.strict,
+            codec_only: a.codec_only,
+        }
     }
 }
 

@@ -284,8 +284,12 @@ fn audit_refuses_what_is_no_release_and_warns_about_unknown_metadata() {
     assert!(stdout.contains("cause:") && !stdout.contains("NaN") && !stdout.contains("inf"), "{stdout}");
     let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let warnings = v["warnings"].as_array().expect("warnings array");
-    assert_eq!(warnings.len(), 1, "{v}");
+    assert_eq!(warnings.len(), 2, "{v}");
     assert!(warnings[0].as_str().unwrap().contains("sensor_supply_v"));
+    // The skipped trace is in the JSON as well (an independent tester found it only on stderr).
+    assert!(
+        warnings[1].as_str().unwrap().starts_with("skipped: ") && warnings[1].as_str().unwrap().contains("zero.csv")
+    );
 }
 
 #[test]
@@ -299,4 +303,47 @@ fn fit_refuses_a_trace_too_short_to_fit() {
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains("one.csv") && stderr.contains("too short to fit: 1 sample(s)"), "{stderr}");
     assert!(!stdout.contains("NaN") && !stderr.contains("NaN"), "{stdout}{stderr}");
+}
+
+/// `can decode --strict` (for CI replays): exit 0 on a clean log, 1 when any frame was flagged
+/// or lost, with the summary saying what; without `--strict` the same log exits 0.
+#[test]
+fn can_decode_strict_exit_codes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let log = tmp.path().join("demo.log");
+    let full = tmp.path().join("full.log");
+    let out = host_sim(&[os("can"), os("demo-log"), os("--out"), full.as_os_str()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // The first 200 frames (about 80 s, two releases): the display's output stays within a
+    // pipe buffer.
+    let head: Vec<String> = std::fs::read_to_string(&full).unwrap().lines().take(200).map(str::to_owned).collect();
+    std::fs::write(&log, head.join("\n") + "\n").unwrap();
+    let strict = |path: &Path| host_sim(&[os("can"), os("decode"), os("--strict"), path.as_os_str()]);
+    let clean = strict(&log);
+    assert_eq!(clean.status.code(), Some(0), "{}", String::from_utf8_lossy(&clean.stderr));
+    let text = String::from_utf8_lossy(&clean.stdout);
+    assert!(text.contains("loco  7 release  2"), "reports name locomotive and release: {text}");
+    let lines: Vec<String> = std::fs::read_to_string(&log).unwrap().lines().map(str::to_owned).collect();
+    // A replayed line (the 40th frame again at the 80th), a deleted line (the 100th), a
+    // corrupted one: each makes --strict fail.
+    let mut replayed = lines.clone();
+    let (t80, _) = replayed[80].split_once(' ').unwrap();
+    let copy = format!("{t80} {}", lines[40].split_once(' ').unwrap().1);
+    replayed.insert(80, copy);
+    let mut deleted = lines.clone();
+    deleted.remove(100);
+    let mut corrupted = lines.clone();
+    corrupted[120] = corrupted[120].replacen('#', "#FF", 1).chars().take(corrupted[120].len()).collect();
+    for (name, variant, needle) in
+        [("replayed", replayed, "flagged"), ("deleted", deleted, "lost"), ("corrupted", corrupted, "flagged")]
+    {
+        let path = tmp.path().join(format!("{name}.log"));
+        std::fs::write(&path, variant.join("\n") + "\n").unwrap();
+        let out = strict(&path);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{name}: {stderr}");
+        assert!(stderr.contains("--strict") && stderr.contains(needle), "{name}: {stderr}");
+        let lenient = host_sim(&[os("can"), os("decode"), path.as_os_str()]);
+        assert_eq!(lenient.status.code(), Some(0), "{name} without --strict");
+    }
 }

@@ -201,8 +201,16 @@ impl fmt::Display for Line<'_> {
     }
 }
 
-/// Time stamp of sample `index` of an input that starts at `base_us`: the monitor's clock is
-/// the sample count (100 Hz), so firmware and host stamp the same frame alike.
+/// Start of the monitor's log clock: 2026-01-01T00:00:00Z in µs since the Unix epoch. Logs carry
+/// absolute (epoch-based) time stamps, as `candump -L` writes them, so that can-utils
+/// `log2asc`/`asc2log` convert them faithfully (zero-based stamps make `log2asc` date the log
+/// 1970 and start a second header after the first second). A fixed start, not the wall clock:
+/// firmware and host logs of the same input stay byte-identical and reproducible.
+pub const LOG_EPOCH_US: u64 = 1_767_225_600_000_000;
+
+/// Time stamp of sample `index` of an input that starts at `base_us` (normally
+/// [`LOG_EPOCH_US`]): the monitor's clock is the sample count (100 Hz), so firmware and host
+/// stamp the same frame alike.
 pub fn sample_time_us(base_us: u64, index: u32) -> u64 {
     base_us.saturating_add(u64::from(index) * 10_000)
 }

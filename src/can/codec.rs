@@ -1,19 +1,81 @@
 //! Encoding and stateless decoding of the two frames, with the E2E CRC.
 //!
-//! E2E scheme (in the style of AUTOSAR E2E profile 11): byte 0 carries a CRC-8 SAE J1850
-//! (polynomial 0x1D, initial value 0xFF, final XOR 0xFF) computed over the message's 16-bit
-//! data ID (low byte first, not transmitted) followed by data bytes 1..8; the low nibble of
-//! byte 1 carries a rolling counter 0..=15. The data ID differs per message, so a frame that
-//! shows up under the wrong identifier fails its CRC.
+//! E2E scheme (in the style of AUTOSAR E2E profile 11, with SecOC-style implicit freshness):
+//! byte 0 carries a CRC-8 SAE J1850 (polynomial 0x1D, initial value 0xFF, final XOR 0xFF)
+//! computed over the message's 16-bit data ID (low byte first, not transmitted), for the fault
+//! report then the sender's [`Identity`] (locomotive, release number; not transmitted in the
+//! fault report, the status frame carries them), then data bytes 1..8. Byte 1 starts with the
+//! message's counter (4 bits in the fault report, 12 in the status frame). The data ID differs
+//! per message, so a frame that shows up under the wrong identifier fails its CRC; the identity
+//! in the fault report's CRC ties each report to one locomotive and one release.
 
 use super::frame::CanFrame;
 use super::layout::{self as l, Message, Signal};
 use crate::fault::FaultClass;
 use crate::report::{EstimatorState, FaultReport, NoDiagnosis, StatusReport, Verdict};
 use crate::sensor::SensorFault;
-use crc::{Crc, CRC_8_SAE_J1850};
 
-const CRC8: Crc<u8> = Crc::<u8>::new(&CRC_8_SAE_J1850);
+/// Who sends and in which release: the locomotive's number and the release number, 6 bits
+/// each (higher bits are dropped). Sent in every status frame and bound into the CRC of every
+/// fault report.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub struct Identity {
+    /// The locomotive the monitor is fitted to ([`l::LOCOMOTIVE`]).
+    pub locomotive: u8,
+    /// The release number ([`l::RELEASE_NUMBER`]).
+    pub release: u8,
+}
+
+impl Identity {
+    /// The identity with both numbers cut to their 6 bits.
+    pub const fn masked(self) -> Self {
+        Self { locomotive: self.locomotive & 0x3F, release: self.release & 0x3F }
+    }
+}
+
+/// The locomotive number of a locomotive's name as data sets write it (`loco-05` → 5): the
+/// decimal digits at its end, modulo 64 (the width of [`l::LOCOMOTIVE`]); 0 without digits.
+pub fn locomotive_number(name: &str) -> u8 {
+    let (mut v, mut place) = (0u32, 1u32);
+    for d in name.trim().bytes().rev().take_while(u8::is_ascii_digit) {
+        v = (v + u32::from(d - b'0') * place) % 64;
+        place = (place * 10) % 64;
+    }
+    v as u8
+}
+
+/// CRC-8 SAE J1850 of one nibble shifted through the register (`T[n]` = CRC step of `n << 4`):
+/// a 16-byte table instead of the usual 256 bytes (flash), two lookups a byte.
+const CRC8_NIBBLE: [u8; 16] = {
+    let mut t = [0u8; 16];
+    let mut n = 0;
+    while n < 16 {
+        let mut c = (n as u8) << 4;
+        let mut k = 0;
+        while k < 4 {
+            c = if c & 0x80 != 0 { (c << 1) ^ 0x1D } else { c << 1 };
+            k += 1;
+        }
+        t[n] = c;
+        n += 1;
+    }
+    t
+};
+
+/// Feeds bytes through a CRC-8 SAE J1850 register (polynomial 0x1D, MSB first).
+fn crc8_update(mut crc: u8, bytes: &[u8]) -> u8 {
+    for &b in bytes {
+        crc ^= b;
+        crc = (crc << 4) ^ CRC8_NIBBLE[usize::from(crc >> 4)];
+        crc = (crc << 4) ^ CRC8_NIBBLE[usize::from(crc >> 4)];
+    }
+    crc
+}
+
+/// CRC-8 SAE J1850 (initial value 0xFF, final XOR 0xFF; check value 0x4B for "123456789").
+pub fn crc8_sae_j1850(bytes: &[u8]) -> u8 {
+    crc8_update(0xFF, bytes) ^ 0xFF
+}
 
 /// Why a frame is not a valid report. Small and `Copy` so the firmware and the host can count,
 /// log and display it.
@@ -45,25 +107,42 @@ pub enum FrameError {
         /// CRC received in byte 0.
         got: u8,
     },
-    /// The counter equals the previous frame's: a repeated or replayed frame.
-    RepeatedCounter {
-        /// The counter received.
-        counter: u8,
+    /// Not newer than what was accepted from that message: a repetition, a replay, or the late
+    /// frame of a reordered pair.
+    Stale {
+        /// Counter of the last accepted frame (fault report: its time since release, 0.1 s).
+        last: u16,
+        /// Counter received (fault report: its time since release, 0.1 s).
+        got: u16,
     },
-    /// The counter jumped ahead: frames were lost.
-    SkippedCounter {
-        /// Counter expected.
+    /// Its freshness does not match the time it arrived (more than the receive tolerance): a
+    /// delayed frame, or a replay or insertion at the wrong moment.
+    Untimely {
+        /// How much later (positive) or earlier (negative) it arrived than its freshness says, ms.
+        off_ms: i32,
+    },
+    /// Sooner after the previous frame of that message than the sender ever sends (status: 1 s;
+    /// fault report: 100 ms, 1 s for an unchanged report): a flood or an inserted frame.
+    RateExceeded {
+        /// Time since the previous accepted frame of that message, ms.
+        gap_ms: u32,
+    },
+    /// A status frame of another locomotive (another monitor on the bus, or frames of another
+    /// recording) while one is being followed.
+    ForeignSender {
+        /// The locomotive number it carries.
+        locomotive: u8,
+    },
+    /// A release number that went backwards (an earlier release's frame).
+    WrongRelease {
+        /// Release number of the session.
         expected: u8,
-        /// Counter received.
+        /// Release number received.
         got: u8,
     },
-    /// The counter went backwards: a stale, reordered or replayed frame.
-    OutOfOrder {
-        /// Counter expected.
-        expected: u8,
-        /// Counter received.
-        got: u8,
-    },
+    /// A fault report with no live heartbeat to attribute it to (before the first status frame
+    /// or after the heartbeat was lost): its locomotive and release cannot be checked.
+    NoHeartbeat,
     /// CRC and counter are good but a signal holds a value the DBC does not define (or a
     /// reserved bit is set): the sender is broken or speaks another layout version.
     InvalidSignal {
@@ -82,9 +161,12 @@ impl FrameError {
             Self::RemoteFrame { .. } => "remote_frame",
             Self::WrongLength { .. } => "wrong_length",
             Self::WrongCrc { .. } => "wrong_crc",
-            Self::RepeatedCounter { .. } => "repeated_counter",
-            Self::SkippedCounter { .. } => "skipped_counter",
-            Self::OutOfOrder { .. } => "out_of_order",
+            Self::Stale { .. } => "stale",
+            Self::Untimely { .. } => "untimely",
+            Self::RateExceeded { .. } => "rate_exceeded",
+            Self::ForeignSender { .. } => "foreign_sender",
+            Self::WrongRelease { .. } => "wrong_release",
+            Self::NoHeartbeat => "no_heartbeat",
             Self::InvalidSignal { .. } => "invalid_signal",
         }
     }
@@ -98,11 +180,15 @@ impl core::fmt::Display for FrameError {
             Self::RemoteFrame { id } => write!(f, "remote frame for id {id:X}"),
             Self::WrongLength { expected, got } => write!(f, "wrong length {got} (expected {expected})"),
             Self::WrongCrc { expected, got } => write!(f, "wrong CRC {got:02X} (expected {expected:02X})"),
-            Self::RepeatedCounter { counter } => write!(f, "repeated counter {counter}"),
-            Self::SkippedCounter { expected, got } => {
-                write!(f, "skipped counter {got} (expected {expected}, {} lost)", got.wrapping_sub(expected) & 0xF)
+            Self::Stale { last, got } => {
+                write!(f, "stale: {got} not newer than {last} (repeated, replayed or reordered)")
             }
-            Self::OutOfOrder { expected, got } => write!(f, "counter {got} out of order (expected {expected})"),
+            Self::Untimely { off_ms } if off_ms >= 0 => write!(f, "untimely: {off_ms} ms late for its freshness"),
+            Self::Untimely { off_ms } => write!(f, "untimely: {} ms early for its freshness", -i64::from(off_ms)),
+            Self::RateExceeded { gap_ms } => write!(f, "rate exceeded: {gap_ms} ms after the previous frame"),
+            Self::ForeignSender { locomotive } => write!(f, "foreign sender: locomotive {locomotive}"),
+            Self::WrongRelease { expected, got } => write!(f, "release {got} went backwards (expected {expected})"),
+            Self::NoHeartbeat => write!(f, "no heartbeat to attribute it to"),
             Self::InvalidSignal { signal, raw } => write!(f, "invalid value {raw} in signal {signal}"),
         }
     }
@@ -150,20 +236,20 @@ impl MessageKind {
     }
 }
 
-/// The E2E CRC of an 8-byte payload for a data ID (byte 0 of the payload is not included).
-pub fn e2e_crc(data_id: u16, payload: &[u8; 8]) -> u8 {
-    let mut d = CRC8.digest();
-    d.update(&data_id.to_le_bytes());
-    d.update(payload.get(1..).unwrap_or(&[]));
-    d.finalize()
+/// The E2E CRC of an 8-byte payload for a data ID (byte 0 of the payload is not included);
+/// `identity` (the fault report's) goes into the CRC after the data ID, not on the bus.
+pub fn e2e_crc(data_id: u16, identity: Option<Identity>, payload: &[u8; 8]) -> u8 {
+    let mut crc = crc8_update(0xFF, &data_id.to_le_bytes());
+    if let Some(id) = identity {
+        let id = id.masked();
+        crc = crc8_update(crc, &[id.locomotive, id.release]);
+    }
+    crc8_update(crc, payload.get(1..).unwrap_or(&[])) ^ 0xFF
 }
 
-fn seal(msg: &Message, counter_sig: &Signal, crc_sig: &Signal, mut bits: u64, counter: u8) -> CanFrame {
-    counter_sig.put(&mut bits, u64::from(counter & 0xF));
+fn seal(msg: &Message, identity: Option<Identity>, bits: u64) -> CanFrame {
     let mut payload = bits.to_le_bytes();
-    let crc = e2e_crc(msg.data_id, &payload);
-    crc_sig.put(&mut bits, u64::from(crc));
-    payload = bits.to_le_bytes();
+    payload[0] = e2e_crc(msg.data_id, identity, &payload);
     CanFrame::from_extended(msg.id, payload)
 }
 
@@ -173,12 +259,14 @@ fn quant(v: u16, per_lsb: u16) -> u64 {
     u64::from((u32::from(v) + u32::from(per_lsb / 2)) / u32::from(per_lsb.max(1)))
 }
 
-/// Encodes a fault report with the given rolling counter (only its low 4 bits are used).
+/// Encodes a fault report with the given rolling counter (only its low 4 bits are used) for a
+/// sender identity (bound into the CRC).
 ///
 /// Quantisation (see [`quantize_fault`]): time to 0.1 s, supply to 5 mbar, leak to 1 µm, each
 /// rounded to nearest and saturated to its signal's range.
-pub fn encode_fault(r: &FaultReport, counter: u8) -> CanFrame {
+pub fn encode_fault(r: &FaultReport, counter: u8, identity: Identity) -> CanFrame {
     let mut bits = 0u64;
+    l::FAULT_COUNTER.put(&mut bits, u64::from(counter & 0xF));
     let (diag, conf, reason) = match r.verdict {
         Verdict::Class { class, confidence_pct } => (class as u8, confidence_pct, l::reason::NONE),
         Verdict::CannotDiagnose(why) => (l::DIAGNOSIS_CANNOT_DIAGNOSE, 0, reason_code(why)),
@@ -190,20 +278,37 @@ pub fn encode_fault(r: &FaultReport, counter: u8) -> CanFrame {
     l::TIME_SINCE_RELEASE.put(&mut bits, quant(r.time_since_release_cs, l::TIME_CS_PER_LSB));
     l::SUPPLY_PRESSURE.put(&mut bits, quant(r.supply_mbar, l::SUPPLY_MBAR_PER_LSB));
     l::LEAK_DIAMETER.put(&mut bits, quant(r.leak_um, l::LEAK_UM_PER_LSB));
-    seal(&l::FAULT_REPORT, &l::FAULT_COUNTER, &l::FAULT_CRC, bits, counter)
+    seal(&l::FAULT_REPORT, Some(identity), bits)
 }
 
-/// Encodes a status report with the given rolling counter (only its low 4 bits are used).
-/// Lossless.
-pub fn encode_status(s: &StatusReport, counter: u8) -> CanFrame {
+/// What a status frame says about the link besides the [`StatusReport`]: its heartbeat
+/// counter, the sender's identity and how many fault reports it has sent.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub struct StatusLink {
+    /// Heartbeat counter (12 bits used).
+    pub counter: u16,
+    /// Locomotive and release number.
+    pub identity: Identity,
+    /// Fault reports sent so far, modulo 16 (4 bits used).
+    pub fault_count: u8,
+}
+
+/// Encodes a status report with its link fields. Lossless for every pressure the transducer
+/// can read (below 16.383 bar) and versions up to 15.15; larger values saturate.
+pub fn encode_status(s: &StatusReport, link: StatusLink) -> CanFrame {
     let mut bits = 0u64;
+    let id = link.identity.masked();
+    l::STATUS_COUNTER.put(&mut bits, u64::from(link.counter & 0xFFF));
+    l::LOCOMOTIVE.put(&mut bits, u64::from(id.locomotive));
+    l::RELEASE_NUMBER.put(&mut bits, u64::from(id.release));
+    l::FAULT_REPORT_COUNT.put(&mut bits, u64::from(link.fault_count & 0xF));
     let health = s.sensor_fault.map_or(l::sensor_health::OK, SensorFault::code);
     l::SENSOR_HEALTH.put(&mut bits, u64::from(health));
     l::ESTIMATOR_STATE.put(&mut bits, s.estimator as u64);
     l::CHAMBER_PRESSURE.put(&mut bits, u64::from(s.pressure_mbar));
     l::FIRMWARE_MAJOR.put(&mut bits, u64::from(s.version.0));
     l::FIRMWARE_MINOR.put(&mut bits, u64::from(s.version.1));
-    seal(&l::STATUS, &l::STATUS_COUNTER, &l::STATUS_CRC, bits, counter)
+    seal(&l::STATUS, None, bits)
 }
 
 /// The report a receiver decodes from [`encode_fault`]'s frame: fields rounded to the signal
@@ -235,9 +340,9 @@ fn invalid(sig: &Signal, raw: u64) -> FrameError {
     FrameError::InvalidSignal { signal: sig.name, raw: raw.min(u64::from(u16::MAX)) as u16 }
 }
 
-/// First stage of decoding: which message, right length, right CRC. Returns the message kind,
-/// the payload as a little-endian `u64` and the rolling counter.
-pub fn check_frame(frame: &impl embedded_can::Frame) -> Result<(MessageKind, u64, u8), FrameError> {
+/// First stage of decoding: which message, right length. Returns the message kind and the
+/// payload as a little-endian `u64`.
+pub fn frame_payload(frame: &impl embedded_can::Frame) -> Result<(MessageKind, u64), FrameError> {
     if frame.is_remote_frame() {
         return Err(FrameError::RemoteFrame { id: super::frame::raw_id(frame.id()) });
     }
@@ -248,17 +353,50 @@ pub fn check_frame(frame: &impl embedded_can::Frame) -> Result<(MessageKind, u64
         Ok(p) if data.len() == usize::from(msg.dlc) => p,
         _ => return Err(FrameError::WrongLength { expected: msg.dlc, got: data.len().min(255) as u8 }),
     };
-    let bits = u64::from_le_bytes(payload);
-    let (crc_sig, counter_sig) = match kind {
-        MessageKind::Fault => (&l::FAULT_CRC, &l::FAULT_COUNTER),
-        MessageKind::Status => (&l::STATUS_CRC, &l::STATUS_COUNTER),
+    Ok((kind, u64::from_le_bytes(payload)))
+}
+
+/// The CRC check of a payload: `identity` is the fault report's (ignored for the status frame).
+pub fn check_crc(kind: MessageKind, bits: u64, identity: Identity) -> Result<(), FrameError> {
+    let id = match kind {
+        MessageKind::Fault => Some(identity),
+        MessageKind::Status => None,
     };
-    let expected = e2e_crc(msg.data_id, &payload);
-    let got = crc_sig.get(bits) as u8;
-    if expected != got {
-        return Err(FrameError::WrongCrc { expected, got });
+    let expected = e2e_crc(kind.layout().data_id, id, &bits.to_le_bytes());
+    let got = l::FAULT_CRC.get(bits) as u8;
+    if expected == got {
+        Ok(())
+    } else {
+        Err(FrameError::WrongCrc { expected, got })
     }
-    Ok((kind, bits, counter_sig.get(bits) as u8))
+}
+
+/// The counter of a payload (fault report: 4 bits; status: 12 bits).
+pub fn counter_of(kind: MessageKind, bits: u64) -> u16 {
+    match kind {
+        MessageKind::Fault => l::FAULT_COUNTER.get(bits) as u16,
+        MessageKind::Status => l::STATUS_COUNTER.get(bits) as u16,
+    }
+}
+
+/// The link fields of a status payload.
+pub fn status_link(bits: u64) -> StatusLink {
+    StatusLink {
+        counter: l::STATUS_COUNTER.get(bits) as u16,
+        identity: Identity { locomotive: l::LOCOMOTIVE.get(bits) as u8, release: l::RELEASE_NUMBER.get(bits) as u8 },
+        fault_count: l::FAULT_REPORT_COUNT.get(bits) as u8,
+    }
+}
+
+/// Which message, right length, right CRC (for `identity`, when a fault report). Returns the
+/// message kind, the payload as a little-endian `u64` and the counter.
+pub fn check_frame(
+    frame: &impl embedded_can::Frame,
+    identity: Identity,
+) -> Result<(MessageKind, u64, u16), FrameError> {
+    let (kind, bits) = frame_payload(frame)?;
+    check_crc(kind, bits, identity)?;
+    Ok((kind, bits, counter_of(kind, bits)))
 }
 
 /// Last stage of decoding: the signals of a payload that passed [`check_frame`].
@@ -333,9 +471,36 @@ fn decode_status_signals(bits: u64) -> Result<StatusReport, FrameError> {
     })
 }
 
-/// Stateless decode of one frame (no counter check): identifier, length, CRC and signals.
-/// Returns the report and its rolling counter. Use [`super::Decoder`] for a stream.
-pub fn decode_frame(frame: &impl embedded_can::Frame) -> Result<(Report, u8), FrameError> {
-    let (kind, bits, counter) = check_frame(frame)?;
+/// Stateless decode of one frame (no freshness check): identifier, length, CRC (a fault report
+/// against the given sender `identity`) and signals. Returns the report and its counter. Use
+/// [`super::Decoder`] for a stream.
+pub fn decode_frame(frame: &impl embedded_can::Frame, identity: Identity) -> Result<(Report, u16), FrameError> {
+    let (kind, bits, counter) = check_frame(frame, identity)?;
     decode_signals(kind, bits).map(|r| (r, counter))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nibble_crc_is_crc_8_sae_j1850() {
+        assert_eq!(crc8_sae_j1850(b"123456789"), 0x4B);
+        assert_eq!(crc8_sae_j1850(b""), 0x00);
+        // Bitwise reference over every single byte and a few strings.
+        let bitwise = |bytes: &[u8]| {
+            let mut c = 0xFFu8;
+            for &b in bytes {
+                c ^= b;
+                for _ in 0..8 {
+                    c = if c & 0x80 != 0 { (c << 1) ^ 0x1D } else { c << 1 };
+                }
+            }
+            c ^ 0xFF
+        };
+        for b in 0..=255u8 {
+            assert_eq!(crc8_sae_j1850(&[b]), bitwise(&[b]));
+            assert_eq!(crc8_sae_j1850(&[b, 0x5A, b ^ 0xFF]), bitwise(&[b, 0x5A, b ^ 0xFF]));
+        }
+    }
 }

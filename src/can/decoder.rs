@@ -1,181 +1,556 @@
-//! Receiver side: a stream decoder with per-message rolling-counter tracking.
+//! Receiver side: a stream decoder that checks integrity (CRC), then freshness — that every
+//! frame is new, belongs to the sender it is attributed to, and arrived when its freshness says
+//! it was sent — against the receive time it is given.
 //!
-//! Checks, in order: remote frame, identifier, length, CRC, counter, signal values. A frame
-//! that fails any check is flagged with a [`FrameError`] and yields no report; the decoder
-//! never panics on any input.
+//! Checks, in order: remote frame, identifier, length, CRC (the fault report's against the
+//! session's locomotive and release number, which its CRC covers), signal values, then the
+//! freshness rules below. A frame that fails any check is flagged with a [`FrameError`] and
+//! yields no report; **a flagged frame never changes the decoder's state**, so the genuine
+//! frames after a replayed, delayed or inserted one are judged against genuine data only. The
+//! decoder never panics on any input. `can/README.md` explains the choice of scheme, what it
+//! detects and what it cannot.
 //!
-//! Counter rule (per message; `d = (received − last accepted) mod 16`):
-//! - first frame after construction or [`Decoder::reset`]: accepted (nothing to compare with);
-//! - `d = 1`: in sequence, accepted;
-//! - `d = 0`: [`FrameError::RepeatedCounter`] (repeated or replayed frame);
-//! - `d = 2..=8`: [`FrameError::SkippedCounter`] (`d − 1` frames lost); the frame is flagged
-//!   and the tracker resynchronises to it, so the next in-sequence frame is accepted;
-//! - `d = 9..=15`: [`FrameError::OutOfOrder`] (stale, reordered or replayed); no resync, so a
-//!   late frame cannot disturb the live sequence. After [`RESYNC_AFTER`] consecutive
-//!   out-of-order frames the tracker resynchronises to the newest one (the sender restarted).
+//! # Session (status frame = heartbeat, 1 Hz)
 //!
-//! Heartbeat rule ([`Decoder::receive`], which knows the receive time): the status frame is the
-//! monitor's heartbeat (1 Hz). When a status frame with a valid CRC was seen before but none in
-//! the last [`HEARTBEAT_TIMEOUT_US`], the monitor was lost (power cycle, bus-off, a gap between
-//! two recordings in a log). The decoder then forgets its counter history for both messages,
-//! so the restarted sender's sequence (counters from 0 again) is accepted at once instead of
-//! being flagged as repeated or skipped, and tells the caller, who shows the loss. The price is
-//! that a frame replayed right after such a silence is not recognised as a replay; for a
-//! report-only display message that is acceptable (see can/README.md).
+//! The first status frame opens a session: locomotive, release number, 12-bit heartbeat
+//! counter `n`, fault reports sent. Each later status frame of the session must
+//! - come from the same locomotive, else [`FrameError::ForeignSender`];
+//! - come at least 1 s − [`TOLERANCE_US`] after the last accepted one, else
+//!   [`FrameError::RateExceeded`] (a flood, an inserted or replayed frame);
+//! - carry a newer counter (`d = n − n_last mod 4096` in `1..2048`), else [`FrameError::Stale`];
+//! - have come `d` seconds after the last accepted one, within [`TOLERANCE_US`] plus 200 ppm
+//!   clock drift, else [`FrameError::Untimely`] (delayed, or a replay at the wrong moment);
+//! - not go back in release number, else [`FrameError::WrongRelease`].
+//!
+//! `d − 1` heartbeats were lost ([`Reception::lost_status`]; a fault report that arrives when a
+//! heartbeat is overdue reports it at once); fault reports the sender counted but this receiver
+//! never accepted are reported as lost too ([`Reception::lost_fault_reports`]).
+//!
+//! When no status frame was accepted for more than [`HEARTBEAT_TIMEOUT_US`] the session is lost
+//! (power cycle, bus-off, a gap between recordings): the held fault report is stale from then
+//! on. The next status frame reopens it only if it is plausible: the same sender continuing
+//! (counter advanced as the time did), or a restart, which comes with a newer release number
+//! than any this receiver saw from that locomotive (the sender counts each power-up as a
+//! release) and a counter not above the seconds of silence, or a locomotive not seen before.
+//! The newest release seen is remembered per locomotive: a frame of that release that does
+//! not continue it is [`FrameError::Stale`], of an older one [`FrameError::WrongRelease`]. A
+//! session reopened after a silence is tentative: a status frame that continues the lost
+//! session replaces it ([`Reception::superseded`]: the tentative frames were replays).
+//!
+//! # Fault reports
+//!
+//! A fault report is attributed to the session's release, or to the next one when its time
+//! since release says the release began after the last heartbeat; its CRC must match that
+//! locomotive and release. Then:
+//! - at least 100 ms after the last accepted fault report, 1 s when its content is unchanged
+//!   (the sender's own bounds), else [`FrameError::RateExceeded`];
+//! - within its release, a larger time since release than the last accepted report, else
+//!   [`FrameError::Stale`], and that time must match the receive time since the release began
+//!   (within [`TOLERANCE_US`] and the field's 50 ms rounding), else [`FrameError::Untimely`];
+//! - the first report of a release must place the release command between the last heartbeat
+//!   of the previous release and the first of its own, else [`FrameError::Untimely`];
+//! - its counter may jump ahead (fault reports lost), not back ([`FrameError::Stale`]).
+//!
+//! Before any heartbeat a fault report cannot be attributed: [`FrameError::NoHeartbeat`].
 
-use super::codec::{check_frame, decode_signals, FrameError, MessageKind, Report};
-use super::layout::STATUS;
+use super::codec::{
+    check_crc, decode_signals, frame_payload, status_link, FrameError, Identity, MessageKind, Report, StatusLink,
+};
+use super::layout::{self as l, STATUS};
 
-/// Consecutive out-of-order frames after which the counter tracker accepts the new sequence.
-pub const RESYNC_AFTER: u8 = 3;
-
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-struct CounterTracker {
-    last: Option<u8>,
-    out_of_order_run: u8,
-}
-
-impl CounterTracker {
-    fn check(&mut self, counter: u8) -> Result<(), FrameError> {
-        let counter = counter & 0xF;
-        let Some(last) = self.last else {
-            self.last = Some(counter);
-            return Ok(());
-        };
-        let expected = last.wrapping_add(1) & 0xF;
-        match counter.wrapping_sub(last) & 0xF {
-            1 => {
-                self.last = Some(counter);
-                self.out_of_order_run = 0;
-                Ok(())
-            }
-            0 => {
-                self.out_of_order_run = 0;
-                Err(FrameError::RepeatedCounter { counter })
-            }
-            2..=8 => {
-                self.last = Some(counter);
-                self.out_of_order_run = 0;
-                Err(FrameError::SkippedCounter { expected, got: counter })
-            }
-            _ => {
-                self.out_of_order_run = self.out_of_order_run.saturating_add(1);
-                if self.out_of_order_run >= RESYNC_AFTER {
-                    self.last = Some(counter);
-                    self.out_of_order_run = 0;
-                }
-                Err(FrameError::OutOfOrder { expected, got: counter })
-            }
-        }
-    }
-}
-
-/// Silence of the heartbeat (no status frame with a valid CRC) after which the monitor counts
-/// as lost: three status cycles (3 s).
+/// Silence of the heartbeat (no accepted status frame) after which the session counts as lost:
+/// three status cycles (3 s).
 pub const HEARTBEAT_TIMEOUT_US: u64 = 3 * STATUS.cycle_ms as u64 * 1000;
+/// How much earlier or later than its freshness says a genuine frame may arrive (bus latency,
+/// queueing, a gateway): 50 ms.
+pub const TOLERANCE_US: u64 = 50_000;
+const STATUS_PERIOD_US: u64 = STATUS.cycle_ms as u64 * 1000;
+/// The sender's minimum gap between fault reports, and between unchanged ones.
+const FAULT_MIN_GAP_US: u64 = 100_000;
+const FAULT_REPEAT_US: u64 = 1_000_000;
+/// Half the 0.1 s step of `TimeSinceRelease` (the sender rounds to nearest).
+const TAU_ROUNDING_US: u64 = 50_000;
+const TAU_STEP_US: u64 = 100_000;
+const TAU_SATURATED: u16 = 4095;
+/// How much earlier than its release start predicts a fault report may come (the start was
+/// estimated from a delayed report).
+const FAULT_EARLY_US: u64 = 500_000;
+/// Heartbeat counter modulus (12 bits).
+const COUNTER_MOD: u16 = 4096;
+
+/// Clock drift allowed between sender and receiver over `dt`: 200 ppm (crystal oscillators
+/// stay within 100 ppm).
+const fn drift(dt: u64) -> u64 {
+    dt / 5000
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct FaultTrack {
+    /// Receive time of the last accepted fault report.
+    at_us: u64,
+    /// Its release number.
+    release: u8,
+    /// Its time since release, raw (0.1 s).
+    tau: u16,
+    /// Receive time at which its release began (estimated from the first accepted report).
+    start_us: i64,
+    /// Its payload without CRC, counter and time: the content.
+    key: u64,
+    /// Its counter.
+    counter: u8,
+    /// The release start rests on this one report (the release's first accepted).
+    single: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Session {
+    identity: Identity,
+    /// Counter and receive time of the last accepted status frame.
+    counter: u16,
+    at_us: u64,
+    /// When a frame with `counter` was due: the earliest receive time the accepted frames
+    /// imply (a frame that arrives early moves it earlier, a late one by clock drift only),
+    /// so a delayed frame cannot pull the session's clock after it.
+    anchor_us: i64,
+    /// Receive time of the first accepted status frame with this release number.
+    release_since_us: u64,
+    /// Receive time of the last accepted status frame of the previous release, if seen.
+    release_before_us: Option<u64>,
+    /// The counter the next fault report should carry.
+    next_fault: u8,
+    /// Counter of the last accepted fault report.
+    last_fault_counter: Option<u8>,
+    fault: Option<FaultTrack>,
+    /// Opened as a restart after a silence, not yet confirmed by a second heartbeat.
+    tentative: bool,
+    /// Heartbeats found overdue (lost) by fault reports since the last accepted status frame.
+    overdue_reported: u16,
+}
 
 /// What [`Decoder::receive`] made of one frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Reception {
     /// The report, or why the frame was flagged and skipped.
     pub result: Result<Report, FrameError>,
-    /// `Some(silence in µs)` when this frame came after the heartbeat had been silent for longer
-    /// than [`HEARTBEAT_TIMEOUT_US`]: the monitor was lost and counter tracking restarted
-    /// before this frame was checked.
+    /// `Some(silence in µs)` when the heartbeat had been silent for longer than
+    /// [`HEARTBEAT_TIMEOUT_US`] before this frame: the session was lost (the held report is
+    /// stale) and this frame was judged as the start of a new one.
     pub heartbeat_lost_us: Option<u64>,
+    /// Heartbeats (status frames) lost before this one (an accepted status frame only).
+    pub lost_status: u16,
+    /// Fault reports the sender sent that this receiver never accepted (lost or deleted), found
+    /// by this frame's counter (fault report) or fault-report count (status frame).
+    pub lost_fault_reports: u8,
+    /// Which locomotive and release an accepted frame belongs to.
+    pub identity: Option<Identity>,
+    /// This status frame continued a session lost to a silence and replaced a tentative
+    /// session opened meanwhile: the frames accepted in that tentative session were replays.
+    pub superseded: bool,
 }
 
-/// Stream decoder of the monitor's frames, one counter tracker per message.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
+/// Stream decoder of the monitor's frames.
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Decoder {
-    trackers: [CounterTracker; 2],
-    /// Receive time of the last status frame with a valid CRC ([`Decoder::receive`] only).
-    last_heartbeat_us: Option<u64>,
+    session: Option<Session>,
+    /// The session lost to the last silence (for the plausibility of the next one).
+    lost: Option<Session>,
+    /// Newest release number seen per locomotive (bit `i` of `seen`: locomotive `i` seen).
+    newest_release: [u8; 64],
+    seen: u64,
+}
+
+impl Default for Decoder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// `a − b` in µs as a signed number (receive clocks of logs can go backwards).
+fn diff(a: u64, b: u64) -> i64 {
+    (i128::from(a) - i128::from(b)).clamp(i128::from(i64::MIN), i128::from(i64::MAX)) as i64
+}
+
+fn ms(us: i64) -> i32 {
+    (us / 1000).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
+}
+
+/// Release `b` is `a` or later (6-bit numbers, less than half the range ahead).
+fn release_not_before(b: u8, a: u8) -> bool {
+    (b.wrapping_sub(a) & 0x3F) < 32
 }
 
 impl Decoder {
     /// A decoder that has seen nothing yet.
     pub const fn new() -> Self {
-        Self { trackers: [CounterTracker { last: None, out_of_order_run: 0 }; 2], last_heartbeat_us: None }
+        Self { session: None, lost: None, newest_release: [0; 64], seen: 0 }
     }
 
-    /// Decodes one frame received at `now_us` (µs of a monotonic receive clock, e.g. a log's
-    /// time stamps): the heartbeat rule of the module doc, then [`Decoder::decode`]. A clock
-    /// that goes backwards counts as no silence.
-    pub fn receive(&mut self, now_us: u64, frame: &impl embedded_can::Frame) -> Reception {
-        let mut heartbeat_lost_us = None;
-        if let Some(last) = self.last_heartbeat_us {
-            let silence = now_us.saturating_sub(last);
-            if silence > HEARTBEAT_TIMEOUT_US {
-                self.reset();
-                heartbeat_lost_us = Some(silence);
-            }
-        }
-        let result = self.decode(frame);
-        let heartbeat = match result {
-            Ok(Report::Status(_)) => true,
-            // A CRC-valid status frame flagged only for its counter or a signal value still
-            // shows that the monitor is alive.
-            Err(
-                FrameError::RepeatedCounter { .. }
-                | FrameError::SkippedCounter { .. }
-                | FrameError::OutOfOrder { .. }
-                | FrameError::InvalidSignal { .. },
-            ) => matches!(MessageKind::of(frame), Ok(MessageKind::Status)),
-            _ => false,
-        };
-        if heartbeat {
-            self.last_heartbeat_us = Some(now_us);
-        }
-        Reception { result, heartbeat_lost_us }
-    }
-
-    /// Forgets the counter and heartbeat history (for example after a bus-off).
+    /// Forgets everything (for example after a bus-off of the receiver).
     pub fn reset(&mut self) {
         *self = Self::new();
     }
 
-    /// Decodes one received frame. Frames that are not the monitor's (other identifiers,
-    /// remote frames) come back as errors too, so the caller can count or ignore them.
-    pub fn decode(&mut self, frame: &impl embedded_can::Frame) -> Result<Report, FrameError> {
-        let (kind, bits, counter) = check_frame(frame)?;
-        let tracker = match kind {
-            MessageKind::Fault => &mut self.trackers[0],
-            MessageKind::Status => &mut self.trackers[1],
+    /// The sender and release followed now, if a session is open.
+    pub fn identity(&self) -> Option<Identity> {
+        self.session.map(|s| s.identity)
+    }
+
+    /// Whether a report accepted at `accepted_us` is still current at `now_us`: the session is
+    /// open, its heartbeat not silent for longer than [`HEARTBEAT_TIMEOUT_US`], and no newer
+    /// fault report was counted by the sender since. A display shows anything else as stale.
+    pub fn is_current(&self, accepted_us: u64, now_us: u64) -> bool {
+        match self.session {
+            Some(s) => {
+                now_us.saturating_sub(s.at_us) <= HEARTBEAT_TIMEOUT_US
+                    && s.fault.is_some_and(|f| f.at_us == accepted_us)
+            }
+            None => false,
+        }
+    }
+
+    /// Decodes one frame received at `now_us` (µs of the receive clock, e.g. a log's time
+    /// stamps): the rules of the module doc. Frames that are not the monitor's (other
+    /// identifiers, remote frames) come back as errors too, so the caller can count or ignore
+    /// them.
+    pub fn receive(&mut self, now_us: u64, frame: &impl embedded_can::Frame) -> Reception {
+        let mut rec = Reception {
+            result: Err(FrameError::NoHeartbeat),
+            heartbeat_lost_us: None,
+            lost_status: 0,
+            lost_fault_reports: 0,
+            identity: None,
+            superseded: false,
         };
-        tracker.check(counter)?;
-        decode_signals(kind, bits)
+        if let Some(s) = self.session {
+            let silence = now_us.saturating_sub(s.at_us);
+            if silence > HEARTBEAT_TIMEOUT_US {
+                rec.heartbeat_lost_us = Some(silence);
+                // A tentative session never confirmed is not worth remembering over the one
+                // before it.
+                if !s.tentative || self.lost.is_none() {
+                    self.lost = Some(s);
+                }
+                self.session = None;
+            }
+        }
+        rec.result = match frame_payload(frame) {
+            Err(e) => Err(e),
+            Ok((MessageKind::Status, bits)) => self.status(now_us, bits, &mut rec),
+            Ok((MessageKind::Fault, bits)) => self.fault(now_us, bits, &mut rec),
+        };
+        rec
+    }
+
+    fn status(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
+        check_crc(MessageKind::Status, bits, Identity::default())?;
+        let report = decode_signals(MessageKind::Status, bits)?;
+        let link = status_link(bits);
+        let loco = link.identity.locomotive;
+        let lost_same = self.lost.filter(|p| p.identity.locomotive == loco);
+        let continues_lost = lost_same.is_some_and(|p| continuation(&p, now, &link).is_ok());
+        match self.session {
+            Some(s) if s.tentative && continues_lost => {
+                // The sender never restarted: what opened the tentative session was a replay.
+                rec.superseded = true;
+                if let Some(p) = self.lost.take() {
+                    self.accept_status(p, now, &link, rec);
+                }
+            }
+            Some(s) => {
+                if loco != s.identity.locomotive {
+                    return Err(FrameError::ForeignSender { locomotive: loco });
+                }
+                match continuation(&s, now, &link) {
+                    Ok(()) => self.accept_status(s, now, &link, rec),
+                    // A tentative session rests on one frame, which may itself have been early
+                    // or late (or a replay): a newer heartbeat a period or more later that does
+                    // not fit its clock replaces it.
+                    Err(FrameError::Untimely { .. })
+                        if s.tentative
+                            && link.identity.release == s.identity.release
+                            && (1..COUNTER_MOD / 2).contains(&(link.counter.wrapping_sub(s.counter) % COUNTER_MOD))
+                            && diff(now, s.at_us) >= (STATUS_PERIOD_US - TOLERANCE_US) as i64 =>
+                    {
+                        rec.superseded = true;
+                        self.open(now, &link, true, rec);
+                        if let Some(o) = self.session.as_mut() {
+                            // Keep what the receiver knows of the release and its reports.
+                            o.release_before_us = s.release_before_us;
+                            o.release_since_us = s.release_since_us;
+                            o.fault = s.fault;
+                            o.last_fault_counter = s.last_fault_counter;
+                        }
+                    }
+                    Err(e) => return Err(e),
+                }
+            }
+            None => {
+                // No session (start, or after a silence): open one only if the frame is
+                // plausible. The same sender still running continues its session; a sender
+                // that restarted comes with a newer release number (a power-up counts as one,
+                // see `CanReporter::set_identity`) and a counter not above the silence.
+                if continues_lost {
+                    if let Some(p) = self.lost.take() {
+                        self.accept_status(p, now, &link, rec);
+                    }
+                } else if self.seen & (1 << loco) != 0 {
+                    let newest = self.newest_release[usize::from(loco)];
+                    let release = link.identity.release & 0x3F;
+                    if release == newest {
+                        // The release this receiver already followed, not continuing it: a
+                        // frame from before the silence.
+                        let last = lost_same.map_or(0, |p| p.counter);
+                        return Err(FrameError::Stale { last, got: link.counter });
+                    }
+                    if !release_not_before(release, newest) {
+                        return Err(FrameError::WrongRelease { expected: newest, got: release });
+                    }
+                    if let Some(p) = lost_same {
+                        let silence = now.saturating_sub(p.at_us);
+                        if u64::from(link.counter) * STATUS_PERIOD_US > silence.saturating_add(TOLERANCE_US) {
+                            return Err(FrameError::Stale { last: p.counter, got: link.counter });
+                        }
+                    }
+                    self.open(now, &link, true, rec);
+                } else {
+                    // First contact with this locomotive.
+                    self.open(now, &link, true, rec);
+                }
+            }
+        }
+        Ok(report)
+    }
+
+    fn open(&mut self, now: u64, link: &StatusLink, tentative: bool, rec: &mut Reception) {
+        let identity = link.identity.masked();
+        self.session = Some(Session {
+            identity,
+            counter: link.counter,
+            at_us: now,
+            anchor_us: diff(now, 0),
+            release_since_us: now,
+            release_before_us: None,
+            next_fault: link.fault_count & 0xF,
+            last_fault_counter: None,
+            fault: None,
+            tentative,
+            overdue_reported: 0,
+        });
+        self.remember(link);
+        rec.identity = Some(identity);
+    }
+
+    /// Accepts a status frame that continues session `s`.
+    fn accept_status(&mut self, mut s: Session, now: u64, link: &StatusLink, rec: &mut Reception) {
+        let d = link.counter.wrapping_sub(s.counter) % COUNTER_MOD;
+        rec.lost_status = d.saturating_sub(1).saturating_sub(s.overdue_reported);
+        s.overdue_reported = 0;
+        let release = link.identity.release & 0x3F;
+        if release != s.identity.release {
+            s.release_before_us = Some(s.at_us);
+            s.release_since_us = now;
+            s.identity.release = release;
+        }
+        // Fault reports the sender counted that never arrived here (a count behind ours: a
+        // fault report overtook this frame, nothing lost).
+        let behind = link.fault_count.wrapping_sub(s.next_fault) & 0xF;
+        if behind < 8 {
+            rec.lost_fault_reports = behind;
+            s.next_fault = link.fault_count & 0xF;
+        }
+        let due = s.anchor_us.saturating_add(i64::from(d) * STATUS_PERIOD_US as i64);
+        let creep = drift(u64::from(d) * STATUS_PERIOD_US) as i64;
+        s.anchor_us = diff(now, 0).min(due.saturating_add(creep));
+        s.counter = link.counter;
+        s.at_us = now;
+        s.tentative = false;
+        self.session = Some(s);
+        self.remember(link);
+        rec.identity = Some(s.identity);
+    }
+
+    fn remember(&mut self, link: &StatusLink) {
+        let id = link.identity.masked();
+        let i = usize::from(id.locomotive);
+        if self.seen & (1 << i) == 0 || release_not_before(id.release, self.newest_release[i]) {
+            self.newest_release[i] = id.release;
+        }
+        self.seen |= 1 << i;
+    }
+
+    fn fault(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
+        // After a silence the report is judged against the session lost to it (the sender may
+        // well be alive: a fresh report of its release shows it); it does not reopen the
+        // session, only a heartbeat does.
+        let in_lost = self.session.is_none();
+        let Some(mut s) = self.session.or(self.lost) else { return Err(FrameError::NoHeartbeat) };
+        let tau = l::TIME_SINCE_RELEASE.get(bits) as u16;
+        let tau_us = u64::from(tau) * TAU_STEP_US;
+        // Its release: the session's, or the next one if it began after the last heartbeat.
+        let this = s.identity;
+        let next = Identity { release: (this.release + 1) & 0x3F, ..this };
+        let may_be_next = tau_us <= now.saturating_sub(s.at_us).saturating_add(TOLERANCE_US + TAU_ROUNDING_US);
+        let identity = match check_crc(MessageKind::Fault, bits, this) {
+            Ok(()) => this,
+            Err(e) if !may_be_next => return Err(e),
+            Err(e) => {
+                check_crc(MessageKind::Fault, bits, next).map_err(|_| e)?;
+                next
+            }
+        };
+        let report = decode_signals(MessageKind::Fault, bits)?;
+        let counter = l::FAULT_COUNTER.get(bits) as u8;
+        let key = bits & !(l::FAULT_CRC.mask() | l::FAULT_COUNTER.mask() | l::TIME_SINCE_RELEASE.mask());
+        let slack = (TOLERANCE_US + TAU_ROUNDING_US) as i64;
+        let start = diff(now, tau_us);
+        let track = match s.fault {
+            Some(f) => {
+                let gap = diff(now, f.at_us);
+                let min_gap =
+                    if f.release == identity.release && f.key == key { FAULT_REPEAT_US } else { FAULT_MIN_GAP_US };
+                if gap < (min_gap - TOLERANCE_US) as i64 {
+                    return Err(FrameError::RateExceeded { gap_ms: ms(gap.max(0)) as u32 });
+                }
+                if f.release == identity.release {
+                    if tau < f.tau || (tau == f.tau && tau != TAU_SATURATED) {
+                        if f.single && counter == f.counter.wrapping_sub(1) & 0xF && now > f.at_us {
+                            // The report the release's first accepted one skipped, arriving
+                            // after it: a reordered pair. The first came early by the pair's
+                            // distance and set the release start that much too early.
+                            let mut g = f;
+                            g.start_us = g.start_us.saturating_add(i64::from(f.tau - tau) * TAU_STEP_US as i64);
+                            g.single = false;
+                            s.fault = Some(g);
+                            self.store(s, in_lost);
+                        }
+                        return Err(FrameError::Stale { last: f.tau, got: tau });
+                    }
+                    // Late: more than the tolerance and the field's rounding after its time
+                    // since release says. Early (up to half a second): the release start was
+                    // set by a delayed report (it is not moved: an early report may as well be
+                    // the first of a reordered pair).
+                    let since = diff(now, 0).saturating_sub(f.start_us);
+                    let off = since.saturating_sub(tau_us as i64);
+                    let limit = slack + drift(since.unsigned_abs()) as i64;
+                    let saturated = tau == TAU_SATURATED;
+                    if (off > limit && !saturated) || off < -(FAULT_EARLY_US as i64) {
+                        return Err(FrameError::Untimely { off_ms: ms(off) });
+                    }
+                    FaultTrack {
+                        at_us: now,
+                        release: f.release,
+                        tau,
+                        start_us: f.start_us,
+                        key,
+                        counter,
+                        single: false,
+                    }
+                } else {
+                    self.first_of_release(&s, identity, start, slack)?;
+                    FaultTrack {
+                        at_us: now,
+                        release: identity.release,
+                        tau,
+                        start_us: start,
+                        key,
+                        counter,
+                        single: true,
+                    }
+                }
+            }
+            None => {
+                self.first_of_release(&s, identity, start, slack)?;
+                FaultTrack { at_us: now, release: identity.release, tau, start_us: start, key, counter, single: true }
+            }
+        };
+        // Its counter must be newer than the last accepted report's, and reports the sender
+        // counted in between (status frame count, or this counter) were lost; while the
+        // 4-bit counter cannot have wrapped since (16 reports take at least 1.6 s).
+        let recent = s.fault.is_some_and(|f| diff(now, f.at_us) < (16 * FAULT_MIN_GAP_US - TOLERANCE_US) as i64);
+        if let (Some(last), true) = (s.last_fault_counter, recent) {
+            let d = counter.wrapping_sub(last) & 0xF;
+            if d == 0 || d >= 8 {
+                return Err(FrameError::Stale { last: u16::from(last), got: u16::from(counter) });
+            }
+        }
+        let d = counter.wrapping_sub(s.next_fault) & 0xF;
+        if d < 8 {
+            // (A report the status frame overtook was counted lost already.)
+            rec.lost_fault_reports = d;
+        }
+        s.next_fault = (counter + 1) & 0xF;
+        s.last_fault_counter = Some(counter);
+        // Heartbeats overdue at this moment were lost (a deleted status frame is noticed even
+        // when no status frame follows before the sender stops).
+        let overdue = (now.saturating_sub(s.at_us).saturating_sub(TOLERANCE_US) / STATUS_PERIOD_US)
+            .min(u64::from(u16::MAX)) as u16;
+        if overdue > s.overdue_reported {
+            rec.lost_status = overdue - s.overdue_reported;
+            s.overdue_reported = overdue;
+        }
+        s.fault = Some(track);
+        self.store(s, in_lost);
+        rec.identity = Some(identity);
+        Ok(report)
+    }
+
+    fn store(&mut self, s: Session, in_lost: bool) {
+        if in_lost {
+            self.lost = Some(s);
+        } else {
+            self.session = Some(s);
+        }
+    }
+
+    /// The first report of a release must place its release command in the window the
+    /// heartbeats allow.
+    fn first_of_release(&self, s: &Session, identity: Identity, start: i64, slack: i64) -> Result<(), FrameError> {
+        let (earliest, latest) = if identity.release == s.identity.release {
+            (s.release_before_us, Some(s.release_since_us))
+        } else {
+            (Some(s.at_us), None)
+        };
+        if let Some(e) = earliest {
+            let off = diff(e, 0).saturating_sub(start);
+            if off > slack {
+                // Began before the previous release's last heartbeat: an older release's report.
+                return Err(FrameError::Untimely { off_ms: ms(off) });
+            }
+        }
+        if let Some(lt) = latest {
+            let off = start.saturating_sub(diff(lt, 0));
+            if off > slack {
+                return Err(FrameError::Untimely { off_ms: -ms(off) });
+            }
+        }
+        Ok(())
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    fn run(seq: &[u8]) -> [Option<&'static str>; 16] {
-        let mut t = CounterTracker::default();
-        let mut out = [None; 16];
-        for (o, &c) in out.iter_mut().zip(seq) {
-            *o = t.check(c).err().map(|e| e.label());
+/// Does this status frame continue session `s`: later than the rate allows, newer counter, as
+/// many seconds later as the counter advanced, release not going back?
+fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<(), FrameError> {
+    let gap = diff(now, s.at_us);
+    let d = link.counter.wrapping_sub(s.counter) % COUNTER_MOD;
+    if d == 0 || d >= COUNTER_MOD / 2 {
+        // Not newer: a copy right after (a flood) or a repetition of an older frame.
+        if gap < (STATUS_PERIOD_US - TOLERANCE_US) as i64 {
+            return Err(FrameError::RateExceeded { gap_ms: ms(gap.max(0)) as u32 });
         }
-        out
+        return Err(FrameError::Stale { last: s.counter, got: link.counter });
     }
-
-    #[test]
-    fn counter_rules() {
-        let r = run(&[0, 1, 2, 3]);
-        assert_eq!(r[..4], [None; 4]);
-        // Reordered 2 and 1: 2 skips one, 1 is late; 3 then continues the sequence.
-        let r = run(&[0, 2, 1, 3]);
-        assert_eq!(r[..4], [None, Some("skipped_counter"), Some("out_of_order"), None]);
-        // Dropped frame.
-        let r = run(&[14, 15, 1, 2]);
-        assert_eq!(r[..4], [None, None, Some("skipped_counter"), None]);
-        // Replayed frame.
-        let r = run(&[5, 6, 6, 7]);
-        assert_eq!(r[..4], [None, None, Some("repeated_counter"), None]);
-        // Sender restart: three out-of-order frames, then resync.
-        let r = run(&[2, 3, 0, 1, 2, 3]);
-        assert_eq!(r[..6], [None, None, Some("out_of_order"), Some("out_of_order"), Some("out_of_order"), None]);
+    // Late: more than the tolerance (and clock drift) after it was due. Early: up to half a
+    // period is a session clock set by a delayed frame (it moves); more is no genuine frame.
+    let span = u64::from(d) * STATUS_PERIOD_US;
+    let off = diff(now, 0).saturating_sub(s.anchor_us.saturating_add(span as i64));
+    if off > (TOLERANCE_US + drift(span)) as i64 || off < -((STATUS_PERIOD_US / 2) as i64) {
+        if gap < (STATUS_PERIOD_US - TOLERANCE_US) as i64 && off < 0 {
+            return Err(FrameError::RateExceeded { gap_ms: ms(gap.max(0)) as u32 });
+        }
+        return Err(FrameError::Untimely { off_ms: ms(off) });
     }
+    if !release_not_before(link.identity.release, s.identity.release) {
+        return Err(FrameError::WrongRelease { expected: s.identity.release, got: link.identity.release });
+    }
+    Ok(())
 }

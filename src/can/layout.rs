@@ -63,7 +63,9 @@ pub struct Message {
     /// Data length in bytes.
     pub dlc: u8,
     /// E2E data ID mixed into the CRC (not transmitted), so a frame under the wrong
-    /// identifier fails its CRC.
+    /// identifier fails its CRC: the message's PGN with the layout version in the high nibble
+    /// (layout 2; layout 1 used 0xFF50 / 0xFF51), so frames of the two layouts cannot be
+    /// confused.
     pub data_id: u16,
     /// Nominal cycle time in ms (DBC attribute `GenMsgCycleTime`).
     pub cycle_ms: u16,
@@ -106,9 +108,10 @@ pub const FAULT_CRC: Signal = sig("FaultCrc", 0, 8, 1.0, 255.0, "");
 pub const FAULT_COUNTER: Signal = sig("FaultCounter", 8, 4, 1.0, 15.0, "");
 /// Diagnosis: `FaultClass as u8` (0..=5) or [`DIAGNOSIS_CANNOT_DIAGNOSE`].
 pub const DIAGNOSIS: Signal = sig("Diagnosis", 12, 4, 1.0, 15.0, "");
-/// Calibrated classifier confidence, 1 % per LSB (0..=100; the monitor sends at most
+/// Calibrated classifier confidence, 1 % per LSB (0..=100, a clean percentage: the DBC range is
+/// `[0|100]` although 7 bits could carry 127; the monitor sends at most
 /// [`crate::classifier::MAX_CONFIDENCE_PCT`]).
-pub const CONFIDENCE: Signal = sig("Confidence", 16, 7, 1.0, 127.0, "%");
+pub const CONFIDENCE: Signal = sig("Confidence", 16, 7, 1.0, 100.0, "%");
 /// Why no class is named ([`reason`] codes; 0 when a class is named).
 pub const NO_DIAGNOSIS_REASON: Signal = sig("NoDiagnosisReason", 23, 4, 1.0, 15.0, "");
 /// Release completed (piston at its end stop, pressure settled).
@@ -165,7 +168,7 @@ pub const FAULT_REPORT: Message = Message {
     name: "BPM_FaultReport",
     id: ext(0x18FF_5080),
     dlc: 8,
-    data_id: 0xFF50,
+    data_id: 0x2F50,
     cycle_ms: 1000,
     signals: &[
         FAULT_CRC,
@@ -184,19 +187,33 @@ pub const FAULT_REPORT: Message = Message {
 
 /// E2E CRC-8 (SAE J1850) over the data ID and bytes 1..8 of the status frame.
 pub const STATUS_CRC: Signal = sig("StatusCrc", 0, 8, 1.0, 255.0, "");
-/// E2E rolling counter of the status frame (0..=15, wraps).
-pub const STATUS_COUNTER: Signal = sig("StatusCounter", 8, 4, 1.0, 15.0, "");
+/// Heartbeat counter: status frames sent since the monitor started, modulo 4096 (+1 per frame;
+/// 12 bits, so it wraps only after 68 minutes and a replayed heartbeat is told from the live one
+/// at any lag up to that, and by the receive time beyond).
+pub const STATUS_COUNTER: Signal = sig("StatusCounter", 8, 12, 1.0, 4095.0, "");
+/// Estimator state: `EstimatorState as u8`.
+pub const ESTIMATOR_STATE: Signal = sig("EstimatorState", 20, 2, 1.0, 3.0, "");
 /// Sensor health: 0 = ok, otherwise the [`SensorFault::code`](crate::sensor::SensorFault::code)
 /// of the fault the monitor sees now ([`sensor_health`] labels).
-pub const SENSOR_HEALTH: Signal = sig("SensorHealth", 48, 4, 1.0, 15.0, "");
-/// Estimator state: `EstimatorState as u8`.
-pub const ESTIMATOR_STATE: Signal = sig("EstimatorState", 14, 2, 1.0, 3.0, "");
-/// Last measured chamber pressure, 1 mbar per LSB.
-pub const CHAMBER_PRESSURE: Signal = sig("ChamberPressure", 16, 16, 0.001, 65.535, "bar");
-/// Firmware major version.
-pub const FIRMWARE_MAJOR: Signal = sig("FirmwareMajor", 32, 8, 1.0, 255.0, "");
-/// Firmware minor version.
-pub const FIRMWARE_MINOR: Signal = sig("FirmwareMinor", 40, 8, 1.0, 255.0, "");
+pub const SENSOR_HEALTH: Signal = sig("SensorHealth", 22, 4, 1.0, 15.0, "");
+/// Last measured chamber pressure, 1 mbar per LSB (14 bits: 0..16.383 bar g, above the
+/// transducer's full scale of 11.25 bar g, so every reading is sent exactly).
+pub const CHAMBER_PRESSURE: Signal = sig("ChamberPressure", 26, 14, 0.001, 16.383, "bar");
+/// Firmware major version (0..=15).
+pub const FIRMWARE_MAJOR: Signal = sig("FirmwareMajor", 40, 4, 1.0, 15.0, "");
+/// Firmware minor version (0..=15).
+pub const FIRMWARE_MINOR: Signal = sig("FirmwareMinor", 44, 4, 1.0, 15.0, "");
+/// The locomotive the monitor is fitted to (its number in the fleet configuration, modulo 64).
+/// Also bound into every fault report's CRC.
+pub const LOCOMOTIVE: Signal = sig("Locomotive", 48, 6, 1.0, 63.0, "");
+/// Release number: release commands and power-ups the monitor has seen (a counter a
+/// controller keeps across power cycles), modulo 64. Each release, and each power cycle, has
+/// its own number: the release the fault reports of this moment belong to, and what tells a
+/// restarted sender from a replay. Also bound into every fault report's CRC.
+pub const RELEASE_NUMBER: Signal = sig("ReleaseNumber", 54, 6, 1.0, 63.0, "");
+/// Fault reports sent so far, modulo 16: the `FaultCounter` the next fault report will carry.
+/// A receiver that got fewer knows within a second that a fault report was lost.
+pub const FAULT_REPORT_COUNT: Signal = sig("FaultReportCount", 60, 4, 1.0, 15.0, "");
 
 /// Codes of [`SENSOR_HEALTH`].
 pub mod sensor_health {
@@ -229,16 +246,19 @@ pub const STATUS: Message = Message {
     name: "BPM_Status",
     id: ext(0x18FF_5180),
     dlc: 8,
-    data_id: 0xFF51,
+    data_id: 0x2F51,
     cycle_ms: 1000,
     signals: &[
         STATUS_CRC,
         STATUS_COUNTER,
         ESTIMATOR_STATE,
+        SENSOR_HEALTH,
         CHAMBER_PRESSURE,
         FIRMWARE_MAJOR,
         FIRMWARE_MINOR,
-        SENSOR_HEALTH,
+        LOCOMOTIVE,
+        RELEASE_NUMBER,
+        FAULT_REPORT_COUNT,
     ],
 };
 
@@ -260,10 +280,10 @@ mod tests {
             }
             assert_eq!(m.signals[0].start_bit, 0, "CRC in byte 0");
             assert_eq!(m.signals[0].len, 8);
-            assert_eq!(m.signals[1].start_bit, 8, "counter in the low nibble of byte 1");
+            assert_eq!(m.signals[1].start_bit, 8, "counter from the low nibble of byte 1");
         }
         assert_eq!(FAULT_REPORT.reserved_mask(), 0);
-        assert_eq!(STATUS.reserved_mask(), (0b11 << 12) | (0xFFF << 52));
+        assert_eq!(STATUS.reserved_mask(), 0);
     }
 
     #[test]

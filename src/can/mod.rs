@@ -17,7 +17,7 @@
 //! - [`frame`]: a plain frame type implementing [`embedded_can::Frame`].
 //! - [`layout`]: identifiers, signals, value codes.
 //! - [`codec`]: encoding, E2E CRC, stateless decoding.
-//! - [`decoder`]: stream decoder with counter tracking.
+//! - [`decoder`]: stream decoder with freshness checks (counters, release, receive time, rate).
 //! - [`reporter`]: what to send per monitor sample.
 //! - [`candump`]: candump log lines of frames (the firmware's CAN stand-in in QEMU and the
 //!   host's logs write the same bytes).
@@ -29,7 +29,9 @@ pub mod frame;
 pub mod layout;
 pub mod reporter;
 
-pub use codec::{decode_frame, encode_fault, encode_status, quantize_fault, FrameError, MessageKind, Report};
+pub use codec::{
+    decode_frame, encode_fault, encode_status, quantize_fault, FrameError, Identity, MessageKind, Report, StatusLink,
+};
 pub use decoder::{Decoder, Reception, HEARTBEAT_TIMEOUT_US};
 pub use frame::CanFrame;
 pub use reporter::{CanReporter, Outbox};

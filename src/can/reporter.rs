@@ -12,8 +12,20 @@
 //!   is active the current report is repeated every [`FAULT_REPEAT_SAMPLES`] samples (1 Hz)
 //!   so a display that joins late, or lost a frame, catches up. After the release it is not
 //!   repeated: the display holds the last report.
+//!
+//! The rate bound is the reporter's own: whatever `step` and [`CanReporter::close_tick`] are
+//! called with, two fault reports are at least [`FAULT_MIN_GAP_SAMPLES`] apart and two status
+//! frames exactly [`STATUS_PERIOD_SAMPLES`] (at most 11 frames per second; a receiver flags
+//! anything faster as a flood).
+//!
+//! Freshness (see `can/README.md`): every status frame carries a 12-bit heartbeat counter, the
+//! sender's [`Identity`] (locomotive, release number) and the number of fault reports sent;
+//! every fault report carries its 4-bit counter and its time since the release command, and
+//! its CRC covers the identity. The release number counts release commands
+//! ([`CanReporter::new_release`]) and power-ups ([`CanReporter::set_identity`]) from the value
+//! kept across power cycles, so each release and each power cycle has its own number.
 
-use super::codec::{encode_fault, encode_status, quantize_fault};
+use super::codec::{encode_fault, encode_status, quantize_fault, Identity, StatusLink};
 use super::frame::CanFrame;
 use crate::report::{FaultReport, StatusReport};
 
@@ -55,8 +67,9 @@ impl Outbox {
 pub struct CanReporter {
     /// Samples until the next status frame (0 = this sample).
     status_countdown: u32,
-    status_counter: u8,
+    status_counter: u16,
     fault_counter: u8,
+    identity: Identity,
     /// Last fault report sent, quantised, with its time field zeroed (the change key).
     last_fault_key: Option<FaultReport>,
     samples_since_fault: u32,
@@ -69,46 +82,81 @@ impl CanReporter {
             status_countdown: 0,
             status_counter: 0,
             fault_counter: 0,
+            identity: Identity { locomotive: 0, release: 0 },
             last_fault_key: None,
             samples_since_fault: FAULT_MIN_GAP_SAMPLES,
         }
     }
 
-    /// A new release command: the next fault report belongs to a new diagnosis and is sent at
-    /// once, even when its content equals the previous release's report.
+    /// Power-up with the locomotive's number and the release number kept (in non-volatile
+    /// memory) from before it (0 for a new controller). The power-up itself counts as a new
+    /// release number, so frames after a restart can never be mistaken for frames of the
+    /// release before it; the next release command counts one more.
+    pub fn set_identity(&mut self, identity: Identity) {
+        self.identity =
+            Identity { locomotive: identity.locomotive, release: identity.release.wrapping_add(1) }.masked();
+    }
+
+    /// The identity the frames carry now.
+    pub fn identity(&self) -> Identity {
+        self.identity
+    }
+
+    /// A new release command: the release number goes up by one, and the next fault report
+    /// belongs to a new diagnosis and is sent at once, even when its content equals the
+    /// previous release's report.
     pub fn new_release(&mut self) {
+        self.identity.release = (self.identity.release + 1) & 0x3F;
         self.last_fault_key = None;
     }
 
     /// Call once per monitor sample with the current status, the current fault report (if the
     /// monitor has one) and whether a release is in progress (valve command on).
     pub fn step(&mut self, status: &StatusReport, fault: Option<&FaultReport>, release_active: bool) -> Outbox {
-        let mut out = Outbox::empty();
-        if let Some(report) = fault {
-            let key = FaultReport { time_since_release_cs: 0, ..quantize_fault(report) };
-            // The 10 Hz bound holds for every report, including the first of a new release:
-            // a chattering valve command cannot push reports faster than that.
-            let gap_done = self.samples_since_fault >= FAULT_MIN_GAP_SAMPLES;
-            let due = match self.last_fault_key {
-                None => gap_done,
-                Some(last) if last != key => gap_done,
-                Some(_) => release_active && self.samples_since_fault >= FAULT_REPEAT_SAMPLES,
-            };
-            if due {
-                out.push(encode_fault(report, self.fault_counter));
-                self.fault_counter = (self.fault_counter + 1) & 0xF;
-                self.last_fault_key = Some(key);
-                self.samples_since_fault = 0;
-            }
-        }
+        let mut out = self.fault_frame(fault, release_active, self.samples_since_fault);
         if self.status_countdown == 0 {
-            out.push(encode_status(status, self.status_counter));
-            self.status_counter = (self.status_counter + 1) & 0xF;
+            let link =
+                StatusLink { counter: self.status_counter, identity: self.identity, fault_count: self.fault_counter };
+            out.push(encode_status(status, link));
+            self.status_counter = (self.status_counter + 1) & 0xFFF;
             self.status_countdown = STATUS_PERIOD_SAMPLES - 1;
         } else {
             self.status_countdown -= 1;
         }
         self.samples_since_fault = self.samples_since_fault.saturating_add(1);
+        out
+    }
+
+    /// One more transmit tick within the last sample (the input ended): the fault report if
+    /// the schedule allows it, no status frame (the status period is not shortened).
+    pub fn close_tick(&mut self, fault: &FaultReport) -> Outbox {
+        // `step` already counted the last sample as elapsed.
+        let out = self.fault_frame(Some(fault), false, self.samples_since_fault.saturating_sub(1));
+        if !out.as_slice().is_empty() {
+            self.samples_since_fault = 1;
+        }
+        out
+    }
+
+    fn fault_frame(&mut self, fault: Option<&FaultReport>, release_active: bool, elapsed: u32) -> Outbox {
+        let mut out = Outbox::empty();
+        if let Some(report) = fault {
+            let key = FaultReport { time_since_release_cs: 0, ..quantize_fault(report) };
+            // The 10 Hz bound holds for every report, including the first of a new release:
+            // a chattering valve command cannot push reports faster than that.
+            let gap_done = elapsed >= FAULT_MIN_GAP_SAMPLES;
+            let due = match self.last_fault_key {
+                None => gap_done,
+                Some(last) if last != key => gap_done,
+                Some(_) => release_active && elapsed >= FAULT_REPEAT_SAMPLES,
+            };
+            if due {
+                out.push(encode_fault(report, self.fault_counter, self.identity));
+                self.fault_counter = (self.fault_counter + 1) & 0xF;
+                self.last_fault_key = Some(key);
+                self.samples_since_fault = 0;
+            }
+        }
         out
     }
 }

@@ -132,6 +132,14 @@ impl Pipeline {
         Ok(Self::with_monitor(Monitor::with_twin(twin)?))
     }
 
+    /// Power-up identity for the CAN frames: the locomotive's number and the release number
+    /// kept from before this start (a controller keeps it across power cycles; this power-up
+    /// and every release command count one more, [`CanReporter::set_identity`]). Call before
+    /// the first sample.
+    pub fn set_identity(&mut self, identity: crate::can::Identity) {
+        self.reporter.set_identity(identity);
+    }
+
     /// One 100 Hz sample: monitor, release features, diagnosis policy, transmit schedule.
     pub fn step(&mut self, adc: AdcCounts, valve_open: bool) -> PipelineStep {
         let monitor = self.monitor.update(adc, valve_open);
@@ -167,8 +175,8 @@ impl Pipeline {
     pub fn close(&mut self) -> Option<(FaultReport, Outbox)> {
         let closed = if self.diagnosing {
             let report = self.close_diagnosis();
-            // Status and report as the last sample left them (before the release ends below).
-            Some((report, self.reporter.step(&self.monitor.status(), Some(&report), false)))
+            // One more transmit tick within the last sample: the report if the schedule allows.
+            Some((report, self.reporter.close_tick(&report)))
         } else {
             None
         };
@@ -262,15 +270,20 @@ mod tests {
     extern crate std;
     use super::*;
     use crate::can::reporter::FAULT_MIN_GAP_SAMPLES;
-    use crate::can::{decode_frame, Report};
+    use crate::can::{decode_frame, Identity, Report};
     use crate::report::{NoDiagnosis, Verdict};
     use crate::sensor::{adc_from_bar, SensorFault};
     use crate::units::{BarG, PressureQ24};
     use crate::{FaultClass, Twin};
     use std::vec::Vec;
 
+    /// Decodes a frame of locomotive 0 in any release (the tests' pipelines count releases).
+    fn decode_any(f: &crate::can::CanFrame) -> Option<Report> {
+        (0..64).find_map(|release| decode_frame(f, Identity { locomotive: 0, release }).ok().map(|(r, _)| r))
+    }
+
     fn fault_reports(frames: &[crate::can::CanFrame]) -> usize {
-        frames.iter().filter(|f| matches!(decode_frame(*f), Ok((Report::Fault(_), _)))).count()
+        frames.iter().filter(|f| matches!(decode_any(f), Some(Report::Fault(_)))).count()
     }
 
     #[test]
@@ -415,7 +428,7 @@ mod tests {
             }
             let s = pipe.step(adc, true);
             for f in s.frames.as_slice() {
-                if let Ok((Report::Fault(r), _)) = decode_frame(f) {
+                if let Some(Report::Fault(r)) = decode_any(f) {
                     sent.push(Some(r));
                 }
             }

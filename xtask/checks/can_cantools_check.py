@@ -2,6 +2,11 @@
 """Decode every frame of a candump log with cantools (an off-the-shelf DBC tool) against
 can/brake_monitor.dbc and check the values equal host-sim's own decoding.
 
+The fault report's CRC covers the locomotive and release number of the sender (carried by
+the status frame, not by the fault report): host-sim's CSV names the pair it attributed each
+report to, and this script checks it is the last status frame's (or its next release) and that
+the CRC over it matches.
+
 Usage: can_cantools_check.py DBC LOG HOST_SIM_CSV [--require-all-labels]
 
 HOST_SIM_CSV is `host-sim can decode --format csv LOG`: one row per frame, in log order, with
@@ -16,7 +21,9 @@ import sys
 import cantools
 import cantools.logreader
 
-DATA_IDS = {"BPM_FaultReport": 0xFF50, "BPM_Status": 0xFF51}
+DATA_IDS = {"BPM_FaultReport": 0x2F50, "BPM_Status": 0x2F51}
+# The fault report's CRC also covers the sender identity the status frame carries.
+IDENTITY_SIGNALS = ("Locomotive", "ReleaseNumber")
 CRC_SIGNAL = {"BPM_FaultReport": "FaultCrc", "BPM_Status": "StatusCrc"}
 COUNTER_SIGNAL = {"BPM_FaultReport": "FaultCounter", "BPM_Status": "StatusCounter"}
 
@@ -50,6 +57,7 @@ def main() -> int:
 
     seen = {}
     counts = {}
+    identity = {"Locomotive": 0, "ReleaseNumber": 0}  # of the last status frame (0, 0 before one)
     for i, (fr, row) in enumerate(zip(frames, rows)):
         where = f"frame {i + 1} ({fr.frame_id:08X}#{fr.data.hex().upper()})"
         try:
@@ -67,8 +75,20 @@ def main() -> int:
         raw = db.decode_message(fr.frame_id, data, decode_choices=False, scaling=False)
         phys = db.decode_message(fr.frame_id, data, decode_choices=True, scaling=True)
 
-        # E2E, independently of the Rust code.
-        crc = crc8_sae_j1850(DATA_IDS[msg.name].to_bytes(2, "little") + data[1:])
+        # E2E, independently of the Rust code: data ID, then (fault report) the locomotive and
+        # release number of the status frame (host-sim's attribution, which this checks), then
+        # bytes 1..7.
+        if msg.name == "BPM_Status":
+            identity = {k: raw[k] for k in IDENTITY_SIGNALS}
+            implicit = b""
+        else:
+            loco, release = int(row["Locomotive"]), int(row["ReleaseNumber"])
+            implicit = bytes([loco, release])
+            if (loco, release) not in {(identity.get("Locomotive"), identity.get("ReleaseNumber")),
+                                       (identity.get("Locomotive"), (identity.get("ReleaseNumber", -1) + 1) % 64)}:
+                errors.append(f"{where}: host-sim attributes it to locomotive {loco} release {release}, "
+                              f"the last status frame says {identity}")
+        crc = crc8_sae_j1850(DATA_IDS[msg.name].to_bytes(2, "little") + implicit + data[1:])
         if raw[CRC_SIGNAL[msg.name]] != crc:
             errors.append(f"{where}: CRC {raw[CRC_SIGNAL[msg.name]]:02X}, expected {crc:02X}")
         if int(row["counter"]) != raw[COUNTER_SIGNAL[msg.name]]:

@@ -446,6 +446,10 @@ What was cut (2026-11-23, from 48008 B, nothing the monitor does removed):
 - the vector table: the AN386's 32 device interrupts instead of 240 (`firmware/src/vectors.rs`);
 - `memmove` (1.5 KiB), pulled in by embassy's generic timer queue and by a send future holding a
   frame: a fixed-slot timer queue, and a send that builds the message once there is room;
+- the CRC-8 table (issue 18, 2026-11-25): a 16-entry nibble table instead of the `crc` crate's
+  256 bytes, same CRC (checked against the crate in the tests). It paid for the CAN freshness
+  fields of layout 2 (release number, heartbeat counter, identity in the CRC): 32 668 B before
+  issue 18, 32 496 B after, and the per-sample worst case went down by 40 instructions.
 - the log text (2026-11-25, issue 19): defmt instead of a hand-made line builder, the format
   strings in the ELF's `.defmt` section, decoded on the host: 376 B of flash (32668 → 32292 B)
   and 1068 B of stack (no 192-byte line buffers: 3312 → 2244 B).

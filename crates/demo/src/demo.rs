@@ -314,8 +314,10 @@ pub struct DecodedReport {
     pub file: String,
     /// True class of the trace.
     pub label: String,
-    /// Log time, µs.
+    /// Log time since the log's epoch, µs.
     pub time_us: u64,
+    /// Locomotive and release it belongs to.
+    pub identity: Option<pbm::can::Identity>,
     /// The report.
     pub report: pbm::report::FaultReport,
 }
@@ -370,7 +372,7 @@ pub fn sample_items(dir: &Path, per_class: usize) -> Result<Vec<TraceItem>> {
 
 /// Decodes a candump log with the core decoder; reports are attributed to `items` in order,
 /// a new trace starting at every gap of more than half [`pbm_lab::replay::TRACE_GAP_US`]
-/// (where the decoder's counter history is reset, as the log's sender restarts).
+/// (where the decoder finds the heartbeat lost and follows the restarted sender).
 pub fn decode_log(log: &Path, items: &[TraceItem]) -> Result<CanStage> {
     let file = std::fs::File::open(log).with_context(|| format!("cannot open {}", log.display()))?;
     let mut st = CanStage { log: log.to_owned(), ..CanStage::default() };
@@ -393,17 +395,19 @@ pub fn decode_log(log: &Path, items: &[TraceItem]) -> Result<CanStage> {
             // Each trace is a fresh pipeline (a controller restarted for the next release):
             // its counters start again, which the display's decoder must not flag.
             segment += 1;
-            decoder.reset();
         }
         last_us = Some(rec.time_us);
-        match decoder.decode(&rec.frame) {
+        let reception = decoder.receive(rec.time_us, &rec.frame);
+        match reception.result {
             Ok(Report::Status(_)) => st.status += 1,
             Ok(Report::Fault(report)) => {
                 let item = items.get(segment);
                 st.reports.push(DecodedReport {
                     file: item.map_or_else(|| "?".to_owned(), |i| i.name.clone()),
                     label: item.and_then(|i| i.label.clone()).unwrap_or_default(),
-                    time_us: rec.time_us,
+                    // Seconds since the log's epoch (the replay's clock starts there).
+                    time_us: rec.time_us.saturating_sub(pbm::can::candump::LOG_EPOCH_US),
+                    identity: reception.identity,
                     report,
                 });
             }
@@ -989,7 +993,7 @@ fn section_can(r: &DemoResults) -> Section {
             Cell::text(format!("{:.3} mm", f64::from(rep.leak_um) / 1000.0)),
             Cell::text(format!("{:.1} s", f64::from(rep.time_since_release_cs) / 100.0)),
             Cell::text(if rep.release_completed { "completed" } else { "in progress" }),
-            Cell::mono(pbm_lab::can_cmd::fault_line(d.time_us, rep).trim().to_owned()),
+            Cell::mono(pbm_lab::can_cmd::fault_line(d.time_us, d.identity, rep).trim().to_owned()),
         ]);
     }
     s.push(Block::Table(t));

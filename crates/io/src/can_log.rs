@@ -10,7 +10,7 @@
 
 use crate::can_bus::FrameSink;
 use embedded_can::{ExtendedId, Frame, Id, StandardId};
-use pbm::can::{CanFrame, CanReporter};
+use pbm::can::{CanFrame, CanReporter, Identity};
 use pbm::monitor::Monitor;
 use pbm::pipeline::fault_report;
 use pbm::report::Verdict;
@@ -254,12 +254,20 @@ impl<W: Write> FrameSink for CandumpWriter<W> {
 pub struct CanRecorder<S: FrameSink> {
     reporter: CanReporter,
     sink: S,
+    was_active: bool,
 }
 
 impl<S: FrameSink> CanRecorder<S> {
-    /// A recorder whose counters start at 0.
+    /// A recorder whose counters start at 0 (locomotive 0, release number 0).
     pub fn new(sink: S) -> Self {
-        Self { reporter: CanReporter::new(), sink }
+        Self { reporter: CanReporter::new(), sink, was_active: false }
+    }
+
+    /// A recorder for a locomotive whose last release had number `identity.release`.
+    pub fn with_identity(sink: S, identity: Identity) -> Self {
+        let mut r = Self::new(sink);
+        r.reporter.set_identity(identity);
+        r
     }
 
     /// Call right after `monitor.update(..)` for each sample, at the sample's time. `verdict`
@@ -272,6 +280,11 @@ impl<S: FrameSink> CanRecorder<S> {
         verdict: Option<Verdict>,
         release_active: bool,
     ) -> std::io::Result<usize> {
+        if release_active && !self.was_active {
+            // A release command: the next release number, as the pipeline does.
+            self.reporter.new_release();
+        }
+        self.was_active = release_active;
         let status = monitor.status();
         let fault = verdict.map(|v| fault_report(monitor, v));
         let out = self.reporter.step(&status, fault.as_ref(), release_active);

@@ -216,6 +216,24 @@ pub fn noise_sigma(y: &[f64]) -> f64 {
     1.4826 * median(&mut dev) / 6f64.sqrt()
 }
 
+/// Lag-1 autocorrelation of the noise of `y`, from its second differences (the signal's are
+/// negligible where it is smooth): for noise with lag-1 correlation ρ (and none beyond) the
+/// second differences have lag-1 correlation r = (7ρ − 4)/(6 − 8ρ), so ρ = (6r + 4)/(7 + 8r).
+/// Differences beyond 5 robust σ (corners of the signal: the valve opening, a compressor
+/// switching) are left out. Clamped to 0..=0.99.
+pub fn noise_lag1(y: &[f64]) -> f64 {
+    let d: Vec<f64> = y.windows(3).map(|w| w[2] - 2.0 * w[1] + w[0]).collect();
+    let limit = 5.0 * noise_sigma(y) * 6f64.sqrt();
+    let pairs: Vec<(f64, f64)> =
+        d.windows(2).filter(|w| w[0].abs() <= limit && w[1].abs() <= limit).map(|w| (w[0], w[1])).collect();
+    let (sab, saa) = pairs.iter().fold((0.0, 0.0), |(sab, saa), &(a, b)| (sab + a * b, saa + 0.5 * (a * a + b * b)));
+    if pairs.len() < 10 || saa <= 0.0 {
+        return 0.0;
+    }
+    let r = (sab / saa).clamp(-0.75, 0.5);
+    ((6.0 * r + 4.0) / (7.0 + 8.0 * r)).clamp(0.0, 0.99)
+}
+
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
@@ -544,6 +562,25 @@ fn at_bound_flag(effect: Mechanism, u: f64) -> Option<String> {
         effect.unit(),
         effect.unit()
     ))
+}
+
+/// Why magnitude `v` of `effect` is physically incredible although the search allows it (the
+/// search is wide so that degenerate directions can be followed): supply air colder than
+/// −40 °C.
+fn physically_incredible(effect: Mechanism, v: f64) -> Option<String> {
+    (effect == Mechanism::GasTemperature && v < GAS_TEMPERATURE_CREDIBLE_K)
+        .then(|| format!("{effect} = {v:.0} K is supply air colder than {:.0} °C", GAS_TEMPERATURE_CREDIBLE_K - 273.15))
+}
+
+/// The coldest supply air an audit names, K (−40 °C, the coldest service temperature of rail
+/// equipment in EN 50155's widest class).
+pub const GAS_TEMPERATURE_CREDIBLE_K: f64 = 233.15;
+
+/// A candidate that lowers the weighted RSS but raises the NMSE against the measured mean (it
+/// trades a better fit of the noisy samples for a worse curve) is no explanation.
+fn worse_nmse_flag(c: &CandidateFit, base: &CandidateFit) -> Option<String> {
+    (c.nmse_pct >= base.nmse_pct)
+        .then(|| format!("it makes the NMSE worse ({:.3} % → {:.3} %)", base.nmse_pct, c.nmse_pct))
 }
 
 /// A candidate with its magnitudes in words.
@@ -1251,6 +1288,9 @@ pub struct AuditOutcome {
     /// RMS of the base and the chosen model's residual in units of the noise σ of the mean
     /// release (1 = at the noise floor; see [`NOISE_FLOOR_RATIO`]).
     pub residual_to_noise: (f64, f64),
+    /// The worst 1 s window's RMS residual of the base and the chosen model, in noise σ of the
+    /// mean release ([`WINDOW_FLOOR_RATIO`]).
+    pub window_to_noise: (f64, f64),
     /// Warnings about the input ([`AuditData::warnings`]).
     pub warnings: Vec<String>,
     /// The unmodelled flow the base model leaves, per configuration group (where the model is
@@ -1263,6 +1303,13 @@ pub struct AuditOutcome {
 /// 8–16 times the noise in NMSE. Above it the verdict is `unexplained` when no candidate is
 /// chosen, and a chosen cause is reported as explaining only part of the discrepancy.
 pub const NOISE_FLOOR_RATIO: f64 = 2.0;
+
+/// Samples of the windows of [`AuditOutcome::window_to_noise`] (1 s).
+pub const WINDOW_SAMPLES: usize = 100;
+/// Largest RMS residual of any 1 s window, in noise σ of the mean release, that a model may
+/// leave and still be at the noise floor. Clean releases (our plant, the independent plants)
+/// leave at most ≈ 1.5.
+pub const WINDOW_FLOOR_RATIO: f64 = 3.0;
 
 /// Unit of a base parameter beyond tolerance in verdicts.
 pub const PARAMETER_UNIT: &str = "× documented";
@@ -1448,40 +1495,45 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         b.delta_bic = 0.0;
         b
     };
-    let mut ranking: Vec<CandidateFit> = fits
-        .iter()
-        .map(|(effects, lm, evals)| {
-            let name = effects.iter().map(|e| e.name()).collect::<Vec<_>>().join("+");
-            let mut c = mk(name, effects, lm, *evals);
-            c.delta_bic = dbic(base_lm.rss, lm.rss, effects.len());
-            // 1-σ from s² (JᵀJ)⁻¹, s² = RSS/(n − k) inflated for correlation.
-            let dims = lm.x.len();
-            let s2 = lm.rss / (n.saturating_sub(dims).max(1)) as f64 * inflation;
-            let diag = inverse_diag(&lm.jtj, dims);
-            for (i, eff) in c.effects.iter_mut().enumerate() {
-                let g = nb + i;
-                let slope = effect_slope(eff.0, lm.x[g]).abs();
-                eff.2 = if cf_degenerate(effects) && eff.0 == Mechanism::GasTemperature {
-                    // Cf and T are one direction: the statistical part with Cf held, plus the
-                    // Cf tolerance (uniform ± BASE_SPREAD, T ∝ Cf⁻²) as a prior uncertainty.
-                    let stat = (s2 / lm.jtj[g * dims + g].max(1e-300)).sqrt() * slope;
-                    let prior = eff.1 * 2.0 * BASE_SPREAD / 3f64.sqrt();
-                    stat.hypot(prior)
-                } else {
-                    (diag[g] * s2).max(0.0).sqrt() * slope
-                };
-            }
-            c.flag = effects.iter().enumerate().find_map(|(i, &e)| at_bound_flag(e, lm.x[nb + i])).or_else(|| {
-                // A magnitude the data do not determine (1 σ as large as its distance from
-                // "off") is no finding either.
-                c.effects
+    let mut ranking: Vec<CandidateFit> =
+        fits.iter()
+            .map(|(effects, lm, evals)| {
+                let name = effects.iter().map(|e| e.name()).collect::<Vec<_>>().join("+");
+                let mut c = mk(name, effects, lm, *evals);
+                c.delta_bic = dbic(base_lm.rss, lm.rss, effects.len());
+                // 1-σ from s² (JᵀJ)⁻¹, s² = RSS/(n − k) inflated for correlation.
+                let dims = lm.x.len();
+                let s2 = lm.rss / (n.saturating_sub(dims).max(1)) as f64 * inflation;
+                let diag = inverse_diag(&lm.jtj, dims);
+                for (i, eff) in c.effects.iter_mut().enumerate() {
+                    let g = nb + i;
+                    let slope = effect_slope(eff.0, lm.x[g]).abs();
+                    eff.2 = if cf_degenerate(effects) && eff.0 == Mechanism::GasTemperature {
+                        // Cf and T are one direction: the statistical part with Cf held, plus the
+                        // Cf tolerance (uniform ± BASE_SPREAD, T ∝ Cf⁻²) as a prior uncertainty.
+                        let stat = (s2 / lm.jtj[g * dims + g].max(1e-300)).sqrt() * slope;
+                        let prior = eff.1 * 2.0 * BASE_SPREAD / 3f64.sqrt();
+                        stat.hypot(prior)
+                    } else {
+                        (diag[g] * s2).max(0.0).sqrt() * slope
+                    };
+                }
+                c.flag = effects
                     .iter()
-                    .find(|(e, v, sd)| *sd >= (v - e.off()).abs())
-                    .map(|(e, v, sd)| format!("{e} = {v:.3} ± {sd:.3} {} is not determined by the data", e.unit()))
-            });
-            c
-        })
-        .collect();
+                    .enumerate()
+                    .find_map(|(i, &e)| at_bound_flag(e, lm.x[nb + i]))
+                    .or_else(|| {
+                        // A magnitude the data do not determine (1 σ as large as its distance from
+                        // "off") is no finding either.
+                        c.effects.iter().find(|(e, v, sd)| *sd >= (v - e.off()).abs()).map(|(e, v, sd)| {
+                            format!("{e} = {v:.3} ± {sd:.3} {} is not determined by the data", e.unit())
+                        })
+                    })
+                    .or_else(|| c.effects.iter().find_map(|&(e, v, _)| physically_incredible(e, v)))
+                    .or_else(|| worse_nmse_flag(&c, &base));
+                c
+            })
+            .collect();
     for (w, lm, evals) in &wide_fits {
         let wprob = Problem { data, spread: wide_box(w) };
         let u = lm.x[w.index];
@@ -1513,6 +1565,9 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
             parameter: Some((w.name, scale, sigma)),
             flag,
         });
+    }
+    for c in ranking.iter_mut().filter(|c| c.parameter.is_some() && c.flag.is_none()) {
+        c.flag = worse_nmse_flag(c, &base);
     }
     ranking.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
 
@@ -1580,11 +1635,6 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     if !(residual_to_noise.0.is_finite() && residual_to_noise.1.is_finite()) {
         bail!("{}: the fit gave no finite residual: these releases cannot be audited", data.source);
     }
-    let cause = match (terms(&chosen) == 0, residual_to_noise.0 <= NOISE_FLOOR_RATIO) {
-        (true, true) => "none".to_owned(),
-        (true, false) => "unexplained".to_owned(),
-        (false, _) => chosen.name.clone(),
-    };
     let chosen_x: Vec<f64> =
         chosen.base_u.iter().copied().chain(chosen.effects.iter().map(|&(e, v, _)| effect_u(e, v))).collect();
     let chosen_effects: Vec<Mechanism> = chosen.effects.iter().map(|e| e.0).collect();
@@ -1610,6 +1660,29 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
             base_travel: b.1.clone(),
         })
         .collect::<Vec<_>>();
+    // The worst 1 s window of each model's residual, in noise σ of the mean release: an RMS over
+    // the whole release hides a short event (a sticky spot mid-stroke left 1.7× overall and
+    // 17× at its peak).
+    let window_to_noise = |preds: &[(Vec<f64>, Vec<f64>)]| {
+        data.groups
+            .iter()
+            .zip(preds)
+            .flat_map(|(g, (p, _))| {
+                let res: Vec<f64> = g.mean.iter().zip(p).map(|(m, p)| (m - p) / g.sigma_mean).collect();
+                res.chunks(WINDOW_SAMPLES)
+                    .filter(|c| c.len() == WINDOW_SAMPLES)
+                    .map(|c| (c.iter().map(|v| v * v).sum::<f64>() / c.len() as f64).sqrt())
+                    .collect::<Vec<_>>()
+            })
+            .fold(0.0, f64::max)
+    };
+    let window_to_noise = (window_to_noise(&base_preds), window_to_noise(&chosen_preds));
+    let at_floor = residual_to_noise.0 <= NOISE_FLOOR_RATIO && window_to_noise.0 <= WINDOW_FLOOR_RATIO;
+    let cause = match (terms(&chosen) == 0, at_floor) {
+        (true, true) => "none".to_owned(),
+        (true, false) => "unexplained".to_owned(),
+        (false, _) => chosen.name.clone(),
+    };
     let per_trace = |preds: &[(Vec<f64>, Vec<f64>)]| {
         let v: Vec<f64> = data
             .groups
@@ -1660,29 +1733,37 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         n_eff,
         n,
         residual_to_noise,
+        window_to_noise,
     })
 }
 
-/// Lag-`lag` autocorrelation of the measurement noise, pooled over every trace: the deviation of
-/// each trace from its group's mean when the group has replicates (exactly noise, whatever the
-/// model), else from its own local linear fit (±[`crate::missing_flow::HALF_WINDOW`] samples).
+/// Lag-`lag` autocorrelation of the measurement noise, pooled over every trace: from the
+/// deviation of each trace from its group's mean when the group has replicates (exactly noise,
+/// whatever the model); for a group of one trace from its second differences ([`noise_lag1`],
+/// raised to the power `lag`).
 pub fn noise_correlation(data: &AuditData, lag: usize) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
+    let (mut sum, mut weight) = (0.0, 0.0);
     for g in &data.groups {
         for t in &g.traces {
-            let e: Vec<f64> = if g.traces.len() >= 2 {
-                t.iter().zip(&g.mean).map(|(a, m)| a - m).collect()
+            let rho = if g.traces.len() < 2 {
+                noise_lag1(t).powi(lag as i32)
             } else {
-                let fit = crate::missing_flow::local_linear(t, crate::missing_flow::HALF_WINDOW);
-                t.iter().zip(&fit).map(|(a, f)| a - f.0).collect()
+                let e: Vec<f64> = t.iter().zip(&g.mean).map(|(a, m)| a - m).collect();
+                let m = e.iter().sum::<f64>() / e.len().max(1) as f64;
+                let den: f64 = e.iter().map(|v| (v - m) * (v - m)).sum();
+                let num: f64 = e.windows(lag + 1).map(|w| (w[0] - m) * (w[lag] - m)).sum();
+                if den > 0.0 {
+                    num / den
+                } else {
+                    0.0
+                }
             };
-            let m = e.iter().sum::<f64>() / e.len().max(1) as f64;
-            den += e.iter().map(|v| (v - m) * (v - m)).sum::<f64>();
-            num += e.windows(lag + 1).map(|w| (w[0] - m) * (w[lag] - m)).sum::<f64>();
+            sum += t.len() as f64 * rho;
+            weight += t.len() as f64;
         }
     }
-    if den > 0.0 {
-        num / den
+    if weight > 0.0 {
+        sum / weight
     } else {
         0.0
     }
@@ -1710,7 +1791,15 @@ impl AuditOutcome {
     /// - `none`: `magnitude` and `uncertainty` are `null`.
     ///
     /// `magnitudes` is always an array (empty for `none`) and `causes` lists
-    /// `{"name", "magnitude", "uncertainty", "unit"}` objects, so a reader need not branch.
+    /// `{"name", "magnitude", "uncertainty", "unit"}` objects, so a reader need not branch; a
+    /// base parameter beyond tolerance is a cause with unit [`PARAMETER_UNIT`].
+    ///
+    /// Also: `residual_to_noise` `{"base", "chosen", "noise_floor"}`, `explains_all`,
+    /// `alternatives` (candidates that fit as well, in words), `flagged` (fits that were not
+    /// credible, with the reason) and `unmodelled_flow`, one entry per configuration group:
+    /// `{"description", "max_block_z", "explained_by_terms", "terms": [{"name", "magnitude",
+    /// "unit", "knot_bar_g", "text"}], "segments": [{"t_s", "sign", "mean_g_per_s",
+    /// "inflow_ratio", "pressure_bar_g", "travel_mm", "phases", "text"}]}`.
     /// The NMSEs are SPEC §6 against the mean measured trace of each configuration group.
     pub fn to_json(&self) -> serde_json::Value {
         let mut doc = verdict_json(&VerdictJson {
@@ -1732,6 +1821,12 @@ impl AuditOutcome {
             "noise_floor": NOISE_FLOOR_RATIO,
         });
         doc["explains_all"] = serde_json::Value::Bool(self.explains_all());
+        doc["window_to_noise"] = serde_json::json!({
+            "base": self.window_to_noise.0,
+            "chosen": self.window_to_noise.1,
+            "window_s": WINDOW_SAMPLES as f64 * SAMPLE_PERIOD_S,
+            "noise_floor": WINDOW_FLOOR_RATIO,
+        });
         doc["alternatives"] = serde_json::json!(self.alternatives);
         doc["flagged"] = serde_json::json!(self.flagged);
         doc["unmodelled_flow"] = serde_json::json!(self.missing.iter().map(reconstruction_json).collect::<Vec<_>>());
@@ -1741,7 +1836,7 @@ impl AuditOutcome {
 
     /// Whether the chosen model (the base for `none`) leaves only noise.
     pub fn explains_all(&self) -> bool {
-        self.residual_to_noise.1 <= NOISE_FLOOR_RATIO
+        self.residual_to_noise.1 <= NOISE_FLOOR_RATIO && self.window_to_noise.1 <= WINDOW_FLOOR_RATIO
     }
 
     /// The verdict in one sentence, with its evidence.
@@ -1751,6 +1846,11 @@ impl AuditOutcome {
             "none" => format!(
                 "none: the base model is consistent with the noise (residual {base:.1}× the noise σ of the mean \
                  release, floor {NOISE_FLOOR_RATIO})"
+            ),
+            "unexplained" if base <= NOISE_FLOOR_RATIO => format!(
+                "unexplained: the base model's residual is {base:.1}× the noise overall but {:.1}× in its worst 1 s \
+                 (floor {WINDOW_FLOOR_RATIO}): a short event no mechanism of the library explains",
+                self.window_to_noise.0
             ),
             "unexplained" => format!(
                 "unexplained: the base model's residual is {base:.1}× the noise (floor {NOISE_FLOOR_RATIO}) and no \
@@ -1766,6 +1866,12 @@ impl AuditOutcome {
                 };
                 if self.explains_all() {
                     format!("{what}: explains the discrepancy (residual {base:.1}× → {chosen:.1}× the noise)")
+                } else if chosen <= NOISE_FLOOR_RATIO {
+                    format!(
+                        "{what} explains most of the discrepancy (residual {base:.1}× → {chosen:.1}× the noise) but \
+                         leaves {:.1}× in its worst 1 s (floor {WINDOW_FLOOR_RATIO}): a short event is missing too",
+                        self.window_to_noise.1
+                    )
                 } else {
                     format!(
                         "{what} explains part of the discrepancy (residual {base:.1}× → {chosen:.1}× the noise, floor \
@@ -1868,6 +1974,12 @@ impl AuditOutcome {
                 let _ = writeln!(s, "  terms explain {:.0} % of the excess", 100.0 * m.explained);
             }
         }
+        let _ = writeln!(
+            s,
+            "residual in noise σ: base {:.2}, chosen {:.2} (floor {NOISE_FLOOR_RATIO}); worst 1 s window: base {:.2}, \
+             chosen {:.2} (floor {WINDOW_FLOOR_RATIO})",
+            self.residual_to_noise.0, self.residual_to_noise.1, self.window_to_noise.0, self.window_to_noise.1
+        );
         let _ = writeln!(s, "verdict: {}", self.verdict_text());
         s
     }

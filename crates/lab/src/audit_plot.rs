@@ -325,7 +325,9 @@ pub fn run(path: &Path, a: &AuditRunOptions) -> Result<Skipped> {
     for w in &data.warnings {
         eprintln!("warning: {w}");
     }
-    let out = audit(&data, AuditOptions { pairs: a.pairs, ..AuditOptions::default() })?;
+    let mut out = audit(&data, AuditOptions { pairs: a.pairs, ..AuditOptions::default() })?;
+    // A skipped trace is said in the JSON too, not only on stderr and in the exit code.
+    out.warnings.extend(skipped.errors().iter().map(|e| format!("skipped: {e}")));
     print!("{}", out.summary());
     eprintln!(
         "audit of {} traces in {:.1} s",

@@ -5,16 +5,22 @@
 //! SocketCAN interface) prints one line per fault report: time, class label, confidence %,
 //! supply pressure with a bar gauge, leak, time since release, completed. Frames with a wrong
 //! CRC, a repeated, skipped or out-of-order counter, an unknown identifier, a wrong length,
-//! an invalid signal value, or log lines that are not frames, are flagged (`!!` lines) and
-//! skipped. It never stops on bad input; it exits 0 and ends with a summary of what it flagged.
-//! A silence of the heartbeat (status frame) longer than [`pbm::can::HEARTBEAT_TIMEOUT_US`] is
-//! shown as a `--` line and restarts counter tracking, so the logs of several releases or
-//! locomotives written one after another (`host-sim replay DATASET --can-log`) decode cleanly.
+//! an invalid signal value, a stale, untimely or too frequent frame (freshness, see
+//! [`pbm::can::decoder`]), or log lines that are not frames, are flagged (`!!` lines) and
+//! skipped; lost frames are shown too. It never stops on bad input; it ends with a summary of
+//! what it flagged and exits 0, or 1 with `--strict` when anything was flagged or lost (for CI
+//! replays). A silence of the heartbeat (status frame) longer than
+//! [`pbm::can::HEARTBEAT_TIMEOUT_US`] is shown as a `--` line (the report held so far is stale
+//! from then on) and the next plausible heartbeat opens a new session, so the logs of several
+//! releases or locomotives written one after another (`host-sim replay DATASET --can-log`)
+//! decode cleanly. Every fault report line names its locomotive and release.
 
 use crate::simulate::{simulate, Engine};
 use anyhow::{bail, Context, Result};
+use pbm::can::candump::LOG_EPOCH_US;
+use pbm::can::codec::{decode_signals, frame_payload, status_link, MessageKind};
 use pbm::can::layout::{reason, sensor_health, ESTIMATOR_STATE_LABELS};
-use pbm::can::{CanFrame, Decoder, FrameError, Report};
+use pbm::can::{CanFrame, Decoder, FrameError, Identity, Report};
 use pbm::monitor::Monitor;
 use pbm::report::{FaultReport, NoDiagnosis, StatusReport, Verdict};
 use pbm::sensor::{adc_from_bar, SensorFault};
@@ -49,6 +55,12 @@ pub struct DecodeOptions {
     pub status: bool,
     /// Output format.
     pub format: DecodeFormat,
+    /// Fail (exit 1) when anything was flagged or lost.
+    pub strict: bool,
+    /// Check integrity only (identifier, length, CRC, signal values), not freshness: for codec
+    /// sweeps whose frames are no stream. A fault report's CRC is checked against the identity
+    /// of the last status frame (locomotive 0, release 0 before one).
+    pub codec_only: bool,
 }
 
 /// What to send where.
@@ -104,14 +116,26 @@ pub struct DecodeSummary {
     /// Flagged and skipped, by reason label ([`FrameError::label`] or `bad_log_line`).
     pub flagged: BTreeMap<&'static str, u64>,
     /// Times the heartbeat was silent for longer than [`pbm::can::HEARTBEAT_TIMEOUT_US`] (monitor
-    /// lost: restart, bus-off, gap between recordings); counter tracking restarted each time.
+    /// lost: restart, bus-off, gap between recordings); a new session started each time.
     pub heartbeat_losses: u64,
+    /// Heartbeats (status frames) the counters show were lost (deleted, or flagged here).
+    pub lost_status: u64,
+    /// Fault reports the sender counted that were never accepted here.
+    pub lost_fault_reports: u64,
+    /// Frames accepted in a tentative session that a continuing heartbeat then showed to be
+    /// replays (counted once per superseded session).
+    pub superseded: u64,
 }
 
 impl DecodeSummary {
     /// All flagged items.
     pub fn flagged_total(&self) -> u64 {
         self.flagged.values().sum()
+    }
+
+    /// Everything `--strict` fails on: flagged frames, lost frames, superseded sessions.
+    pub fn problems(&self) -> u64 {
+        self.flagged_total() + self.lost_status + self.lost_fault_reports + self.superseded
     }
 }
 
@@ -128,6 +152,12 @@ impl std::fmt::Display for DecodeSummary {
         if !self.flagged.is_empty() {
             let parts: Vec<String> = self.flagged.iter().map(|(k, v)| format!("{k} {v}")).collect();
             write!(f, " ({})", parts.join(", "))?;
+        }
+        if self.lost_status + self.lost_fault_reports > 0 {
+            write!(f, "; lost: {} status frames, {} fault reports", self.lost_status, self.lost_fault_reports)?;
+        }
+        if self.superseded > 0 {
+            write!(f, "; {} replayed sessions superseded", self.superseded)?;
         }
         if self.heartbeat_losses > 0 {
             write!(f, "; heartbeat lost {} times", self.heartbeat_losses)?;
@@ -168,19 +198,29 @@ pub fn supply_gauge(bar: f64) -> String {
     format!("[{}{}]", "#".repeat(cells), ".".repeat(10 - cells))
 }
 
+/// Seconds (relative to the start of the input, see [`CabDisplay`]) as `  SSSS.mmm`.
 fn time_text(time_us: u64) -> String {
     format!("{:>6}.{:03}", time_us / 1_000_000, (time_us % 1_000_000) / 1000)
 }
 
-/// One cab display line for a fault report.
-pub fn fault_line(time_us: u64, r: &FaultReport) -> String {
+/// Which locomotive and release a report belongs to, as the display shows it.
+pub fn identity_text(id: Option<Identity>) -> String {
+    match id {
+        Some(id) => format!("loco {:>2} release {:>2}", id.locomotive, id.release),
+        None => "loco  ? release  ?".to_owned(),
+    }
+}
+
+/// One cab display line for a fault report of locomotive and release `id`.
+pub fn fault_line(time_us: u64, id: Option<Identity>, r: &FaultReport) -> String {
     let supply = f64::from(r.supply_mbar) / 1000.0;
     let conf = confidence_pct(&r.verdict).map_or_else(|| " --".to_owned(), |p| format!("{p:>3.0}"));
     // 0 means "not estimated yet" (FaultReport::supply_mbar).
     let supply_txt = if r.supply_mbar == 0 { "  --  ".to_owned() } else { format!("{supply:>6.3}") };
     format!(
-        "{} s  {:<38} conf {conf} %  supply {supply_txt} bar {}  leak {:>5.3} mm  release +{:>5.1} s  {}",
+        "{} s  {}  {:<38} conf {conf} %  supply {supply_txt} bar {}  leak {:>5.3} mm  release +{:>5.1} s  {}",
         time_text(time_us),
+        identity_text(id),
         verdict_label(&r.verdict),
         supply_gauge(supply),
         f64::from(r.leak_um) / 1000.0,
@@ -189,11 +229,12 @@ pub fn fault_line(time_us: u64, r: &FaultReport) -> String {
     )
 }
 
-/// One display line for a status frame.
-pub fn status_line(time_us: u64, s: &StatusReport) -> String {
+/// One display line for a status frame of locomotive and release `id`.
+pub fn status_line(time_us: u64, id: Option<Identity>, s: &StatusReport) -> String {
     format!(
-        "{} s  status: sensor {}  estimator {}  pressure {:.3} bar  firmware {}.{}",
+        "{} s  {}  status: sensor {}  estimator {}  pressure {:.3} bar  firmware {}.{}",
         time_text(time_us),
+        identity_text(id),
         sensor_label(s.sensor_fault),
         ESTIMATOR_STATE_LABELS.get(s.estimator as usize).copied().unwrap_or("?"),
         f64::from(s.pressure_mbar) / 1000.0,
@@ -205,55 +246,90 @@ pub fn status_line(time_us: u64, s: &StatusReport) -> String {
 /// Header of the CSV output of `can decode --format csv`.
 pub const CSV_HEADER: &str = "time_us,id,data,message,counter,Diagnosis,Confidence,NoDiagnosisReason,\
 ReleaseCompleted,TimeSinceRelease,SupplyPressure,LeakDiameter,SensorHealth,EstimatorState,ChamberPressure,\
-FirmwareMajor,FirmwareMinor,flag";
+FirmwareMajor,FirmwareMinor,Locomotive,ReleaseNumber,FaultReportCount,flag";
 
-fn csv_row(time_us: u64, frame: &CanFrame, counter: Option<u8>, report: Option<&Report>, flag: &str) -> String {
+fn csv_row(
+    time_us: u64,
+    frame: &CanFrame,
+    counter: Option<u16>,
+    report: Option<(&Report, Option<Identity>, Option<u8>)>,
+    flag: &str,
+) -> String {
     let (id, data) = match format_frame(frame).split_once('#') {
         Some((i, d)) => (i.to_owned(), d.to_owned()),
         None => (String::new(), String::new()),
     };
     let counter = counter.map_or_else(String::new, |c| c.to_string());
+    let ident = |id: Option<Identity>, count: Option<u8>| match id {
+        Some(id) => format!("{},{},{}", id.locomotive, id.release, count.map_or_else(String::new, |c| c.to_string())),
+        None => ",,".to_owned(),
+    };
     let cols = match report {
-        Some(Report::Fault(r)) => {
+        Some((Report::Fault(r), id, count)) => {
             let (diag, reason_txt) = match r.verdict {
                 Verdict::Class { class, .. } => (class.label().to_owned(), "none".to_owned()),
                 Verdict::CannotDiagnose(why) => ("cannot_diagnose".to_owned(), reason_label(why).to_owned()),
             };
             format!(
-                "BPM_FaultReport,{counter},{diag},{},{reason_txt},{},{},{},{},,,,,",
+                "BPM_FaultReport,{counter},{diag},{},{reason_txt},{},{},{},{},,,,,,{}",
                 confidence_pct(&r.verdict).unwrap_or(0.0),
                 if r.release_completed { "completed" } else { "in_progress" },
                 f64::from(r.time_since_release_cs) / 100.0,
                 f64::from(r.supply_mbar) / 1000.0,
                 f64::from(r.leak_um) / 1000.0,
+                ident(id, count),
             )
         }
-        Some(Report::Status(s)) => format!(
-            "BPM_Status,{counter},,,,,,,,{},{},{},{},{}",
+        Some((Report::Status(s), id, count)) => format!(
+            "BPM_Status,{counter},,,,,,,,{},{},{},{},{},{}",
             sensor_label(s.sensor_fault),
             ESTIMATOR_STATE_LABELS.get(s.estimator as usize).copied().unwrap_or("?"),
             f64::from(s.pressure_mbar) / 1000.0,
             s.version.0,
-            s.version.1
+            s.version.1,
+            ident(id, count),
         ),
-        None => format!(",{counter},,,,,,,,,,,,"),
+        None => format!(",{counter},,,,,,,,,,,,,,,"),
     };
     format!("{time_us},{id},{data},{cols},{flag}")
 }
 
-/// The cab display: a [`Decoder`] plus the printing and counting of `can decode`.
+/// The cab display: a [`Decoder`] plus the printing and counting of `can decode`. Times are
+/// shown relative to the first frame (logs carry absolute, epoch-based stamps).
 pub struct CabDisplay<W: Write> {
     decoder: Decoder,
     out: W,
     show_status: bool,
     format: DecodeFormat,
     summary: DecodeSummary,
+    codec_only: bool,
+    /// Identity of the last status frame (codec-only mode).
+    codec_identity: Identity,
+    start_us: Option<u64>,
+    /// Receive time, locomotive and release of the fault report held on the display.
+    held: Option<(u64, Option<Identity>)>,
 }
 
 impl<W: Write> CabDisplay<W> {
     /// A display printing to `out`.
     pub fn new(out: W, show_status: bool, format: DecodeFormat) -> Self {
-        Self { decoder: Decoder::new(), out, show_status, format, summary: DecodeSummary::default() }
+        Self {
+            decoder: Decoder::new(),
+            out,
+            show_status,
+            format,
+            summary: DecodeSummary::default(),
+            codec_only: false,
+            codec_identity: Identity::default(),
+            start_us: None,
+            held: None,
+        }
+    }
+
+    /// Integrity checks only, no freshness (see [`DecodeOptions::codec_only`]).
+    pub fn codec_only(mut self, yes: bool) -> Self {
+        self.codec_only = yes;
+        self
     }
 
     /// Writes the CSV header (CSV format only).
@@ -264,32 +340,99 @@ impl<W: Write> CabDisplay<W> {
         Ok(())
     }
 
+    fn rel(&self, time_us: u64) -> u64 {
+        time_us.saturating_sub(self.start_us.unwrap_or(time_us))
+    }
+
+    /// What the stateless codec makes of a frame (codec-only mode).
+    fn codec_decode(&mut self, frame: &CanFrame) -> pbm::can::Reception {
+        let result = frame_payload(frame).and_then(|(kind, bits)| {
+            pbm::can::codec::check_crc(kind, bits, self.codec_identity)?;
+            let report = decode_signals(kind, bits)?;
+            if kind == MessageKind::Status {
+                self.codec_identity = status_link(bits).identity;
+            }
+            Ok(report)
+        });
+        pbm::can::Reception {
+            result,
+            heartbeat_lost_us: None,
+            lost_status: 0,
+            lost_fault_reports: 0,
+            identity: Some(self.codec_identity),
+            superseded: false,
+        }
+    }
+
     /// Feeds one received frame.
     pub fn frame(&mut self, time_us: u64, frame: &CanFrame) -> std::io::Result<Result<Report, FrameError>> {
         self.summary.frames += 1;
-        let counter = pbm::can::codec::check_frame(frame).ok().map(|(_, _, c)| c);
-        let reception = self.decoder.receive(time_us, frame);
+        let start = *self.start_us.get_or_insert(time_us);
+        let t = time_us.saturating_sub(start);
+        let payload = frame_payload(frame).ok();
+        let counter = payload.map(|(kind, bits)| pbm::can::codec::counter_of(kind, bits));
+        let count = payload.filter(|(k, _)| *k == MessageKind::Status).map(|(_, bits)| status_link(bits).fault_count);
+        let reception = if self.codec_only { self.codec_decode(frame) } else { self.decoder.receive(time_us, frame) };
+        let text = self.format == DecodeFormat::Text;
         if let Some(silence_us) = reception.heartbeat_lost_us {
             self.summary.heartbeat_losses += 1;
-            if self.format == DecodeFormat::Text {
+            if text {
+                let held = match self.held.take() {
+                    Some((at, id)) => format!(
+                        "; the report of {} (at {} s) is stale",
+                        identity_text(id),
+                        time_text(self.rel(at)).trim_start()
+                    ),
+                    None => String::new(),
+                };
                 writeln!(
                     self.out,
-                    "{} s  -- no heartbeat for {:.1} s: monitor lost (restart or gap); counters resynchronised",
-                    time_text(time_us),
+                    "{} s  -- no heartbeat for {:.1} s: monitor lost (restart or gap){held}",
+                    time_text(t),
                     silence_us as f64 / 1e6
                 )?;
             }
         }
+        if reception.superseded {
+            self.summary.superseded += 1;
+            if text {
+                writeln!(
+                    self.out,
+                    "{} s  !! superseded: the session opened after the silence was a replay; the monitor never restarted",
+                    time_text(t)
+                )?;
+            }
+        }
+        if reception.lost_status > 0 || reception.lost_fault_reports > 0 {
+            self.summary.lost_status += u64::from(reception.lost_status);
+            self.summary.lost_fault_reports += u64::from(reception.lost_fault_reports);
+            if text {
+                let held = if reception.lost_fault_reports > 0 && self.held.is_some() {
+                    "; the report shown is stale"
+                } else {
+                    ""
+                };
+                writeln!(
+                    self.out,
+                    "{} s  !! lost before this frame: {} status frames, {} fault reports{held}",
+                    time_text(t),
+                    reception.lost_status,
+                    reception.lost_fault_reports
+                )?;
+            }
+        }
+        let id = reception.identity;
         let result = reception.result;
         match (&result, self.format) {
             (Ok(Report::Fault(r)), DecodeFormat::Text) => {
                 self.summary.fault_reports += 1;
-                writeln!(self.out, "{}", fault_line(time_us, r))?;
+                self.held = Some((time_us, id));
+                writeln!(self.out, "{}", fault_line(t, id, r))?;
             }
             (Ok(Report::Status(s)), DecodeFormat::Text) => {
                 self.summary.status_reports += 1;
                 if self.show_status {
-                    writeln!(self.out, "{}", status_line(time_us, s))?;
+                    writeln!(self.out, "{}", status_line(t, id, s))?;
                 }
             }
             (Ok(report), DecodeFormat::Csv) => {
@@ -297,17 +440,11 @@ impl<W: Write> CabDisplay<W> {
                     Report::Fault(_) => self.summary.fault_reports += 1,
                     Report::Status(_) => self.summary.status_reports += 1,
                 }
-                writeln!(self.out, "{}", csv_row(time_us, frame, counter, Some(report), ""))?;
+                writeln!(self.out, "{}", csv_row(time_us, frame, counter, Some((report, id, count)), ""))?;
             }
             (Err(e), DecodeFormat::Text) => {
                 *self.summary.flagged.entry(e.label()).or_default() += 1;
-                writeln!(
-                    self.out,
-                    "{} s  !! {}: {e} [{}] skipped",
-                    time_text(time_us),
-                    e.label(),
-                    format_frame(frame)
-                )?;
+                writeln!(self.out, "{} s  !! {}: {e} [{}] skipped", time_text(t), e.label(), format_frame(frame))?;
             }
             (Err(e), DecodeFormat::Csv) => {
                 *self.summary.flagged.entry(e.label()).or_default() += 1;
@@ -323,7 +460,7 @@ impl<W: Write> CabDisplay<W> {
         *self.summary.flagged.entry("bad_log_line").or_default() += 1;
         match self.format {
             DecodeFormat::Text => writeln!(self.out, "           !! bad_log_line: {e} skipped"),
-            DecodeFormat::Csv => writeln!(self.out, ",,,,,,,,,,,,,,,,,bad_log_line"),
+            DecodeFormat::Csv => writeln!(self.out, ",,,,,,,,,,,,,,,,,,,,bad_log_line"),
         }
     }
 
@@ -365,7 +502,8 @@ pub fn decode_source<W: Write>(source: &mut impl FrameSource, display: &mut CabD
 
 fn run_decode(a: &DecodeOptions) -> Result<()> {
     let stdout = std::io::stdout();
-    let mut display = CabDisplay::new(std::io::BufWriter::new(stdout.lock()), a.status, a.format);
+    let mut display =
+        CabDisplay::new(std::io::BufWriter::new(stdout.lock()), a.status, a.format).codec_only(a.codec_only);
     if let Some(iface) = &a.can_iface {
         if a.file.is_some() {
             bail!("give either a FILE or --can-iface, not both");
@@ -383,6 +521,15 @@ fn run_decode(a: &DecodeOptions) -> Result<()> {
     }
     let summary = display.finish()?;
     eprintln!("{summary}");
+    if a.strict && summary.problems() > 0 {
+        bail!(
+            "--strict: {} frames flagged, {} status frames and {} fault reports lost, {} replayed sessions",
+            summary.flagged_total(),
+            summary.lost_status,
+            summary.lost_fault_reports,
+            summary.superseded
+        );
+    }
     Ok(())
 }
 
@@ -532,6 +679,9 @@ fn demo_releases() -> Vec<DemoRelease> {
     ]
 }
 
+/// Locomotive number of the demonstration log's monitor.
+pub const DEMO_LOCOMOTIVE: u8 = 7;
+
 /// Seconds the valve stays closed between demonstration releases.
 const DEMO_IDLE_S: f64 = 3.0;
 
@@ -541,7 +691,7 @@ const DEMO_IDLE_S: f64 = 3.0;
 /// During a sensor fault the verdict is `cannot_diagnose (sensor_…)`. Returns frames sent.
 pub fn write_demo_log<S: FrameSink>(sink: S) -> Result<(u64, S)> {
     let mut monitor = Monitor::new(&TwinParams::nominal()).map_err(|e| anyhow::anyhow!("nominal twin: {e}"))?;
-    let mut rec = CanRecorder::new(sink);
+    let mut rec = CanRecorder::with_identity(sink, Identity { locomotive: DEMO_LOCOMOTIVE, release: 0 });
     let mut sample: u64 = 0;
     let mut frames = 0u64;
     // Transducer noise (SPEC §5, σ = 0.01 bar) from a fixed seed: a noise-free reading would
@@ -570,7 +720,7 @@ pub fn write_demo_log<S: FrameSink>(sink: S) -> Result<(u64, S)> {
             // The display holds the last report after the release; nothing new is reported
             // while the valve is closed.
             let current = if open { verdict } else { None };
-            frames += rec.on_sample(sample * 10_000, &monitor, current, open)? as u64;
+            frames += rec.on_sample(LOG_EPOCH_US + sample * 10_000, &monitor, current, open)? as u64;
             sample += 1;
         }
     }
@@ -580,10 +730,11 @@ pub fn write_demo_log<S: FrameSink>(sink: S) -> Result<(u64, S)> {
 /// Writes the codec sweep: fault reports for every verdict (each class at confidences 0, 1,
 /// 50, 99, 100 % and every cannot-diagnose reason) with time, supply and leak at 0, one step,
 /// mid-range, the top of the range and beyond (saturating); status frames for every sensor and
-/// estimator code with pressures 0, 1, 7700, 65535 mbar. Counters run on per message, frames
-/// are 10 ms apart. Returns frames sent.
+/// estimator code with pressures 0, 1, 7700, 16383 and 65535 mbar (saturating), locomotive,
+/// release and count fields over their ranges. Counters run on per message, frames are 10 ms
+/// apart: a codec sweep, not a stream (decode it with `--codec-only`). Returns frames sent.
 pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
-    use pbm::can::{encode_fault, encode_status};
+    use pbm::can::{encode_fault, encode_status, StatusLink};
     use pbm::report::EstimatorState;
     let mut verdicts: Vec<Verdict> = Vec::new();
     for class in FaultClass::ALL {
@@ -598,7 +749,7 @@ pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
     let times: [u16; 6] = [0, 10, 6_000, 40_950, 40_951, u16::MAX];
     let supplies: [u16; 6] = [0, 5, 7_700, 20_475, 20_478, u16::MAX];
     let leaks: [u16; 6] = [0, 1, 850, 4_095, 4_096, u16::MAX];
-    let (mut n, mut fault_counter, mut status_counter) = (0u64, 0u8, 0u8);
+    let (mut n, mut fault_counter, mut status_counter) = (0u64, 0u8, 0u16);
     for (i, verdict) in verdicts.iter().enumerate() {
         for k in 0..times.len() {
             let r = FaultReport {
@@ -608,7 +759,7 @@ pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
                 leak_um: leaks[(k + 2 * i) % leaks.len()],
                 release_completed: (i + k) % 2 == 1,
             };
-            sink.send(n * 10_000, &encode_fault(&r, fault_counter))?;
+            sink.send(LOG_EPOCH_US + n * 10_000, &encode_fault(&r, fault_counter, Identity::default()))?;
             fault_counter = (fault_counter + 1) & 0xF;
             n += 1;
         }
@@ -617,11 +768,15 @@ pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
     let healths = core::iter::once(None).chain(SensorFault::ALL.map(Some));
     for (i, sensor_fault) in healths.enumerate() {
         for (j, estimator) in states.into_iter().enumerate() {
-            for (k, pressure_mbar) in [0u16, 1, 7_700, u16::MAX].into_iter().enumerate() {
-                let version = [(0, 0), (0, 1), (255, 255), (12, 34)][(i + j + k) % 4];
+            for (k, pressure_mbar) in [0u16, 1, 7_700, 16_383, u16::MAX].into_iter().enumerate() {
+                let version = [(0, 0), (0, 1), (15, 15), (255, 255), (12, 3)][(i + j + k) % 5];
                 let s = StatusReport { sensor_fault, estimator, pressure_mbar, version };
-                sink.send(n * 10_000, &encode_status(&s, status_counter))?;
-                status_counter = (status_counter + 1) & 0xF;
+                // Locomotive, release number and fault-report count over their whole ranges.
+                let m = (i * 20 + j * 5 + k) as u8;
+                let identity = Identity { locomotive: m.wrapping_mul(7) & 0x3F, release: m.wrapping_mul(13) & 0x3F };
+                let link = StatusLink { counter: status_counter, identity, fault_count: m & 0xF };
+                sink.send(LOG_EPOCH_US + n * 10_000, &encode_status(&s, link))?;
+                status_counter = (status_counter + 1021) & 0xFFF;
                 n += 1;
             }
         }

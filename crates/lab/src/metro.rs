@@ -46,7 +46,7 @@
 
 use crate::audit::{
     inverse_diag, levenberg_marquardt, noise_sigma, ranking_line, verdict_json, RankedFit, RankingJson, VerdictJson,
-    BIC_THRESHOLD, MIN_RSS_RATIO,
+    BIC_THRESHOLD, MAX_PARTIAL_LEFT, MIN_RSS_RATIO, NOISE_FLOOR_RATIO,
 };
 use crate::random::{normal_pair, unit};
 use anyhow::{Context, Result};
@@ -540,8 +540,162 @@ pub struct MetroOutcome {
     pub ranking: Vec<MetroFit>,
     /// Estimated noise σ, bar.
     pub sigma: f64,
-    /// Residual RMS of the base model during loading, the first 2 min after unloading, and later, bar.
+    /// Residual RMS and bias of the base model during loading, the first 2 min after unloading,
+    /// and later, bar.
     pub base_phase_rms: [(String, f64, f64); 3],
+    /// The same for the chosen model.
+    pub chosen_phase_rms: [(String, f64, f64); 3],
+    /// RMS residual of the base and the chosen model in noise σ (the brake audit's measure;
+    /// [`crate::audit::NOISE_FLOOR_RATIO`] is the floor).
+    pub residual_to_noise: (f64, f64),
+    /// Why a candidate that passed the tests was not named, if one was not.
+    pub note: Option<String>,
+    /// What the chosen model misses, aligned on the compressor cycle ([`aligned_rate`]).
+    pub missing: Vec<AlignedRate>,
+    /// RMS error, bar, that the switch instant alone leaves in a loading phase: COMP is sampled
+    /// every Δt, so the switch is known only within Δt, and the fill rate × Δt/√12 sits on the
+    /// whole phase (the loaded phase's floor; the transducer noise is far below it).
+    pub switch_timing_floor_bar: f64,
+}
+
+/// The unmodelled pressure rate of the chosen model, aligned on the compressor's switching and
+/// averaged over the cycles: what the model misses, and when, in a cycle.
+#[derive(Debug, Clone, PartialEq)]
+pub struct AlignedRate {
+    /// `loaded` (time since the compressor loaded) or `unloaded` (time since it unloaded).
+    pub phase: &'static str,
+    /// Start of the time bin, s since the switch.
+    pub from_s: f64,
+    /// Width of the bin, s.
+    pub width_s: f64,
+    /// Mean unmodelled rate (measured − model), bar/min.
+    pub mean_bar_per_min: f64,
+    /// Its standard error over the intervals of the bin, bar/min.
+    pub se_bar_per_min: f64,
+    /// Intervals in the bin.
+    pub count: usize,
+}
+
+impl AlignedRate {
+    /// Significant at 3 standard errors.
+    pub fn significant(&self) -> bool {
+        self.count >= 3 && self.mean_bar_per_min.abs() >= 3.0 * self.se_bar_per_min
+    }
+}
+
+/// The significant bins of `rates` as windows in words, e.g. "an extra outflow from 60 to 180 s
+/// after the compressor unloads (up to 0.022 bar/min)".
+pub fn describe_aligned(rates: &[AlignedRate]) -> String {
+    let mut parts = Vec::new();
+    let mut i = 0;
+    while i < rates.len() {
+        let a = &rates[i];
+        if !a.significant() {
+            i += 1;
+            continue;
+        }
+        let sign = a.mean_bar_per_min.signum();
+        let mut j = i;
+        while j + 1 < rates.len()
+            && rates[j + 1].significant()
+            && rates[j + 1].phase == a.phase
+            && rates[j + 1].mean_bar_per_min.signum() == sign
+            && (rates[j + 1].from_s - rates[j].from_s - a.width_s).abs() < 1e-9
+        {
+            j += 1;
+        }
+        let peak = rates[i..=j].iter().map(|r| r.mean_bar_per_min.abs()).fold(0.0, f64::max);
+        parts.push(format!(
+            "an extra {} from {:.0} to {:.0} s after the compressor {} (up to {peak:.3} bar/min)",
+            if sign < 0.0 { "outflow" } else { "inflow" },
+            a.from_s,
+            rates[j].from_s + rates[j].width_s,
+            if a.phase == "loaded" { "loads" } else { "unloads" }
+        ));
+        i = j + 1;
+    }
+    if parts.is_empty() {
+        "no systematic unmodelled rate in the compressor cycle".to_owned()
+    } else {
+        parts.join("; ")
+    }
+}
+
+/// Width of the bins of [`aligned_rate`], s.
+pub const ALIGNED_BIN_S: f64 = 60.0;
+
+/// The unmodelled rate `((p_{i+1} − p_i) − (m_{i+1} − m_i)) / Δt` of every interval that lies
+/// inside one phase (not the interval of a switch, whose instant COMP gives only to ± 5 s),
+/// binned by time since the phase began ([`ALIGNED_BIN_S`], up to 10 min).
+pub fn aligned_rate(rows: &[MetroRow], measured: &[f64], curve: &[f64]) -> Vec<AlignedRate> {
+    let mut bins: std::collections::BTreeMap<(u8, usize), Vec<f64>> = Default::default();
+    let mut since = f64::NAN;
+    for i in 1..rows.len().saturating_sub(1) {
+        let (prev, r, next) = (rows[i - 1], rows[i], rows[i + 1]);
+        if r.loaded != prev.loaded {
+            since = r.t_s;
+        }
+        // Only intervals of one phase, after the first full interval of that phase (the model
+        // restarts at a phase's first rows).
+        if next.loaded != r.loaded || !since.is_finite() || r.t_s <= since {
+            continue;
+        }
+        let dt = next.t_s - r.t_s;
+        let (Some(&m0), Some(&m1)) = (curve.get(i), curve.get(i + 1)) else { continue };
+        if dt <= 0.0 {
+            continue;
+        }
+        let rate = ((measured[i + 1] - measured[i]) - (m1 - m0)) / dt * 60.0;
+        let bin = ((r.t_s - since) / ALIGNED_BIN_S) as usize;
+        if bin < 10 && rate.is_finite() {
+            bins.entry((u8::from(r.loaded), bin)).or_default().push(rate);
+        }
+    }
+    bins.into_iter()
+        .map(|((loaded, bin), v)| {
+            let n = v.len() as f64;
+            let mean = v.iter().sum::<f64>() / n;
+            let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+            AlignedRate {
+                phase: if loaded == 1 { "loaded" } else { "unloaded" },
+                from_s: bin as f64 * ALIGNED_BIN_S,
+                width_s: ALIGNED_BIN_S,
+                mean_bar_per_min: mean,
+                se_bar_per_min: (var / n).sqrt(),
+                count: v.len(),
+            }
+        })
+        .collect()
+}
+
+/// Residual RMS and bias (measured − model), bar, while the compressor is loaded, in the first
+/// 2 min after it unloads, and later.
+fn phase_rms(rows: &[MetroRow], measured: &[f64], curve: &[f64]) -> [(String, f64, f64); 3] {
+    let mut acc = [(0.0, 0.0, 0usize); 3];
+    let mut last_unload = f64::NEG_INFINITY;
+    for (i, r) in rows.iter().enumerate() {
+        if i > 0 && rows[i - 1].loaded && !r.loaded {
+            last_unload = r.t_s;
+        }
+        let k = if r.loaded {
+            0
+        } else if r.t_s - last_unload < 120.0 {
+            1
+        } else {
+            2
+        };
+        let e = measured[i] - curve.get(i).copied().unwrap_or(f64::NAN);
+        acc[k].0 += e * e;
+        acc[k].1 += e;
+        acc[k].2 += 1;
+    }
+    let names = ["compressor loaded", "first 2 min after unloading", "decay (later)"];
+    let phase = |k: usize| {
+        let (s, b, c) = acc[k];
+        let c = c.max(1) as f64;
+        (names[k].to_owned(), (s / c).sqrt(), b / c)
+    };
+    [phase(0), phase(1), phase(2)]
 }
 
 /// Runs the metro audit on rows.
@@ -586,8 +740,13 @@ pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
     let n = measured.len();
     let best = fits.iter().map(|f| &f.1).chain([&base_lm]).min_by(|a, b| a.rss.total_cmp(&b.rss)).cloned();
     let best = best.context("no fit")?;
+    // The test counts effective samples from the noise's own correlation (second differences of
+    // the record), the uncertainty is inflated by the best model's leftover correlation, as in
+    // the brake audit.
+    let rho_noise = crate::audit::noise_lag1(&measured);
+    let n_eff = (n as f64 * (1.0 - rho_noise) / (1.0 + rho_noise)).max(5.0);
     let rho = crate::audit::acf(&best.residual, 1).first().copied().unwrap_or(0.0).clamp(0.0, 0.995);
-    let n_eff = (n as f64 * (1.0 - rho) / (1.0 + rho)).max(5.0);
+    let inflation = ((1.0 + rho) / (1.0 - rho)).max(n as f64 / n_eff);
     let dbic = |r0: f64, r1: f64, dk: usize| n_eff * (r0 / r1.max(1e-300)).ln() - dk as f64 * n_eff.ln();
     let mk = |effects: &[Mechanism], lm: &crate::audit::LmResult| {
         let on: Vec<(Mechanism, f64)> =
@@ -595,7 +754,7 @@ pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
         let params = metro_params(&lm.x, &on);
         // 1-σ from s² (JᵀJ)⁻¹ with s² = RSS/(n − k) inflated for the residual correlation.
         let dims = lm.x.len();
-        let s2 = lm.rss / n.saturating_sub(dims).max(1) as f64 * (n as f64 / n_eff);
+        let s2 = lm.rss / n.saturating_sub(dims).max(1) as f64 * inflation;
         let diag = inverse_diag(&lm.jtj, dims);
         let eff: Vec<(Mechanism, f64, f64)> = on
             .iter()
@@ -635,34 +794,33 @@ pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
             }
         }
     }
-    // Where the base residual sits: loading, first 2 min after unloading, the rest.
-    let mut acc = [(0.0, 0.0, 0usize); 3];
-    let mut last_unload = f64::NEG_INFINITY;
-    for (i, r) in rows.iter().enumerate() {
-        if i > 0 && rows[i - 1].loaded && !r.loaded {
-            last_unload = r.t_s;
-        }
-        let k = if r.loaded {
-            0
-        } else if r.t_s - last_unload < 120.0 {
-            1
-        } else {
-            2
-        };
-        let e = measured[i] - base.curve[i];
-        acc[k].0 += e * e;
-        acc[k].1 += e;
-        acc[k].2 += 1;
+    // The same honesty as the brake audit: a cause must at least halve the residual when it
+    // does not reach the noise floor, and no cause is `none` only at the floor.
+    let to_noise = |rss: f64| (rss / n.max(1) as f64).sqrt();
+    let mut note = None;
+    let (rb, rc) = (to_noise(base.rss), to_noise(chosen.rss));
+    if !chosen.effects.is_empty() && rc > NOISE_FLOOR_RATIO && rc > MAX_PARTIAL_LEFT * rb {
+        note = Some(format!("{} leaves {rc:.1}× of the base's {rb:.1}× the noise: too little explained", chosen.name));
+        chosen = base.clone();
     }
-    let names = ["compressor loaded", "first 2 min after unloading", "decay (later)"];
-    let phase = |k: usize| {
-        let (s, b, c) = acc[k];
-        let c = c.max(1) as f64;
-        (names[k].to_owned(), (s / c).sqrt(), b / c)
+    let residual_to_noise = (rb, to_noise(chosen.rss));
+    let cause = match (chosen.effects.is_empty(), rb <= NOISE_FLOOR_RATIO) {
+        (true, true) => "none".to_owned(),
+        (true, false) => "unexplained".to_owned(),
+        (false, _) => chosen.name.clone(),
     };
     Ok(MetroOutcome {
-        cause: if chosen.effects.is_empty() { "none".to_owned() } else { chosen.name.clone() },
-        base_phase_rms: [phase(0), phase(1), phase(2)],
+        cause,
+        residual_to_noise,
+        note,
+        base_phase_rms: phase_rms(rows, &measured, &base.curve),
+        chosen_phase_rms: phase_rms(rows, &measured, &chosen.curve),
+        missing: aligned_rate(rows, &measured, &chosen.curve),
+        switch_timing_floor_bar: {
+            let mut dt: Vec<f64> = rows.windows(2).map(|w| w[1].t_s - w[0].t_s).collect();
+            dt.sort_by(f64::total_cmp);
+            fill_rate_bar_per_s(&chosen.params) * dt.get(dt.len() / 2).copied().unwrap_or(0.0) / 12f64.sqrt()
+        },
         base,
         chosen,
         ranking,
@@ -706,20 +864,85 @@ impl MetroOutcome {
             self.chosen.nmse_pct,
             self.base.nmse_pct / self.chosen.nmse_pct
         );
+        for (name, rms, bias) in &self.chosen_phase_rms {
+            let _ = writeln!(s, "  chosen: {name:<20} RMS {rms:.4} bar, bias (measured − model) {bias:+.4} bar");
+        }
+        let _ = writeln!(
+            s,
+            "  (COMP gives the switch only to the sampling interval: that alone leaves {:.4} bar RMS in a loaded phase)",
+            self.switch_timing_floor_bar
+        );
+        let _ = writeln!(s, "what the chosen model misses, by time since the compressor switched (bar/min, ± 1 SE):");
+        for a in &self.missing {
+            let _ = writeln!(
+                s,
+                "  {:<8} {:>4.0}–{:<4.0} s  {:+.4} ± {:.4}  ({} intervals){}",
+                a.phase,
+                a.from_s,
+                a.from_s + a.width_s,
+                a.mean_bar_per_min,
+                a.se_bar_per_min,
+                a.count,
+                if a.significant() { "  significant" } else { "" }
+            );
+        }
+        let _ = writeln!(s, "verdict: {}", self.verdict_text());
         s
+    }
+
+    /// The verdict in one sentence with its evidence (the brake audit's wording).
+    pub fn verdict_text(&self) -> String {
+        let (b, c) = self.residual_to_noise;
+        let mut text = match self.cause.as_str() {
+            "none" => format!("none: the base model is consistent with the noise ({b:.1}× the noise σ)"),
+            "unexplained" => format!(
+                "unexplained: the base model's residual is {b:.1}× the noise (floor {NOISE_FLOOR_RATIO}) and no \
+                 mechanism explains it"
+            ),
+            name if c <= NOISE_FLOOR_RATIO => format!("{name}: explains the discrepancy ({b:.1}× → {c:.1}× the noise)"),
+            name => format!(
+                "{name} explains part of the discrepancy ({b:.1}× → {c:.1}× the noise, floor {NOISE_FLOOR_RATIO}): \
+                 something else is missing too"
+            ),
+        };
+        if let Some(n) = &self.note {
+            text.push_str(&format!("; {n}"));
+        }
+        if c > NOISE_FLOOR_RATIO {
+            text.push_str(&format!("; what is missing: {}", describe_aligned(&self.missing)));
+        }
+        text
     }
 
     /// JSON verdict: the brake audit's format ([`crate::audit::AuditOutcome::to_json`]) without
     /// the per-trace NMSEs (one record).
     pub fn to_json(&self) -> serde_json::Value {
-        verdict_json(&VerdictJson {
+        let mut doc = verdict_json(&VerdictJson {
             cause: &self.cause,
             causes: self.chosen.json_effects(),
             nmse_pct: (self.base.nmse_pct, self.chosen.nmse_pct),
             nmse_per_trace_pct: None,
             noise_sigma_bar: self.sigma,
             ranking: RankingJson::rows(&self.ranking, self.base.rss),
-        })
+        });
+        doc["residual_to_noise"] = serde_json::json!({
+            "base": self.residual_to_noise.0,
+            "chosen": self.residual_to_noise.1,
+            "noise_floor": NOISE_FLOOR_RATIO,
+        });
+        doc["explains_all"] = serde_json::Value::Bool(self.residual_to_noise.1 <= NOISE_FLOOR_RATIO);
+        doc["verdict"] = serde_json::json!(self.verdict_text());
+        doc["switch_timing_floor_bar"] = serde_json::json!(self.switch_timing_floor_bar);
+        doc["unmodelled_rate"] = serde_json::json!(self
+            .missing
+            .iter()
+            .map(|a| serde_json::json!({
+                "phase": a.phase, "from_s": a.from_s, "width_s": a.width_s,
+                "mean_bar_per_min": a.mean_bar_per_min, "se_bar_per_min": a.se_bar_per_min,
+                "count": a.count, "significant": a.significant(),
+            }))
+            .collect::<Vec<_>>());
+        doc
     }
 }
 

@@ -56,7 +56,7 @@ pub const BLOCK_SAMPLES: usize = 25;
 pub const Z_SIGNIFICANT: f64 = 4.0;
 /// A single significant block forms a segment only from this |z| on (two adjacent suffice at
 /// [`Z_SIGNIFICANT`]).
-pub const Z_SINGLE_BLOCK: f64 = 6.0;
+pub const Z_SINGLE_BLOCK: f64 = 5.0;
 /// Model floor of a block's σ: this share of the modelled inflow (the core's fixed-point twin
 /// against this f64 evaluation, and the filter's bias at the corners of the curve).
 pub const MODEL_FLOOR_REL: f64 = 0.03;

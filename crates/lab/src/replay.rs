@@ -18,7 +18,7 @@
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use pbm::can::CanFrame;
+use pbm::can::{CanFrame, Identity};
 use pbm::metrics::Nmse;
 use pbm::monitor::MonitorStep;
 use pbm::pipeline::Pipeline;
@@ -247,9 +247,11 @@ impl From<FileError> for ReplayError {
 pub fn replay_samples(
     samples: impl Iterator<Item = Result<(f64, u16), FileError>>,
     keep_frames: bool,
+    identity: Identity,
     mut on_sample: impl FnMut(&ReplaySample) -> Result<()>,
 ) -> Result<Replayed, ReplayError> {
     let mut pipeline = Pipeline::nominal().map_err(|e| ReplayError::Output(anyhow::anyhow!("nominal twin: {e}")))?;
+    pipeline.set_identity(identity);
     let mut out = Replayed::default();
     let mut keep = |time_us: u64, frames: &[CanFrame]| {
         if keep_frames {
@@ -299,7 +301,7 @@ pub fn replay_trace_with_diagnosis(trace: &Trace) -> Result<(Vec<ReplaySample>, 
         Samples::Bar(v) => Box::new(v.iter().map(|&p| adc_from_bar(BarG(p)).0)),
     };
     let mut samples = Vec::with_capacity(trace.t_s.len());
-    let run = replay_samples(trace.t_s.iter().copied().zip(adc).map(Ok), false, |s| {
+    let run = replay_samples(trace.t_s.iter().copied().zip(adc).map(Ok), false, Identity::default(), |s| {
         samples.push(*s);
         Ok(())
     });
@@ -399,12 +401,25 @@ fn output_path(dir: &Path, name: &str, ext: &str) -> PathBuf {
 }
 
 /// Replays one item and writes its outputs (results CSV, plot); a bad input removes what was
-/// written of them.
+/// written of them. Its CAN frames carry the locomotive number of the item's locomotive
+/// ([`pbm::can::codec::locomotive_number`]) and release number 2 (power-up 1, release command
+/// 2), as the firmware's do.
 pub fn replay_item(item: &TraceItem, opts: &ReplayOptions) -> Result<TraceReplay, ReplayError> {
+    replay_item_after(item, opts, 0)
+}
+
+/// [`replay_item`] for a locomotive whose monitor has already seen `earlier_releases` recorded
+/// releases (each trace is a power-up and a release command: two release numbers).
+pub fn replay_item_after(
+    item: &TraceItem,
+    opts: &ReplayOptions,
+    earlier_releases: u8,
+) -> Result<TraceReplay, ReplayError> {
     let mut reader = TraceReader::open(&item.path).map_err(FileError::from)?;
     let label = item.label.clone().or_else(|| reader.meta("label").map(str::to_owned)).unwrap_or_else(|| "-".into());
     let locomotive =
         item.locomotive.clone().or_else(|| reader.meta("locomotive").map(str::to_owned)).unwrap_or_else(|| "-".into());
+    let identity = Identity { locomotive: pbm::can::codec::locomotive_number(&locomotive), release: earlier_releases };
     let results_path = opts.out.as_deref().map(|d| output_path(d, &item.name, "csv"));
     let mut results = match &results_path {
         Some(p) => {
@@ -416,7 +431,7 @@ pub fn replay_item(item: &TraceItem, opts: &ReplayOptions) -> Result<TraceReplay
     };
     let mut series: Option<PlotSeries> = opts.plot.as_ref().map(|_| PlotSeries::default());
     let mut summariser = Summariser::default();
-    let run = replay_samples(stream(&mut reader), opts.can_log.is_some(), |s| {
+    let run = replay_samples(stream(&mut reader), opts.can_log.is_some(), identity, |s| {
         summariser.push(s);
         if let Some(f) = results.as_mut() {
             f.record(result_fields(s))?;
@@ -468,11 +483,26 @@ pub fn replay_all(items: &[TraceItem], opts: &ReplayOptions) -> Result<Vec<Resul
     // No more threads than traces (0 = one per core).
     let threads = if opts.threads == 0 { 0 } else { opts.threads.min(items.len().max(1)) };
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start worker threads")?;
+    // Each locomotive's monitor numbers its releases on: the k-th trace of a locomotive (in
+    // the data set's order) is its release k, so every report in a data set's CAN log belongs
+    // to one locomotive and one release.
+    let mut per_loco: std::collections::HashMap<u8, u8> = std::collections::HashMap::new();
+    let earlier: Vec<u8> = items
+        .iter()
+        .map(|item| {
+            let loco = item.locomotive.as_deref().map_or(0, pbm::can::codec::locomotive_number);
+            let n = per_loco.entry(loco).or_insert(0);
+            let before = *n;
+            *n = n.wrapping_add(1);
+            before
+        })
+        .collect();
     let results: Vec<Result<Result<TraceReplay, FileError>>> = pool.install(|| {
         items
             .par_iter()
-            .map(|item| {
-                let r = match replay_item(item, opts) {
+            .zip(earlier.par_iter())
+            .map(|(item, &before)| {
+                let r = match replay_item_after(item, opts, before) {
                     Ok(r) => Ok(Ok(r)),
                     Err(ReplayError::Input(e)) => Ok(Err(e)),
                     Err(ReplayError::Output(e)) => Err(e),
@@ -486,13 +516,14 @@ pub fn replay_all(items: &[TraceItem], opts: &ReplayOptions) -> Result<Vec<Resul
     results.into_iter().collect()
 }
 
-/// Writes the frames of the replays that succeeded, in order, as one candump log: trace `k`
-/// starts [`TRACE_GAP_US`] after the last sample of trace `k − 1`. For one trace the log is
+/// Writes the frames of the replays that succeeded, in order, as one candump log with absolute
+/// time stamps from [`pbm::can::candump::LOG_EPOCH_US`]: trace `k` starts [`TRACE_GAP_US`]
+/// after the last sample of trace `k − 1`. For one trace the log is
 /// byte for byte what the firmware writes in QEMU. Returns the number of frames.
 pub fn write_can_log<'a>(path: &Path, replays: impl IntoIterator<Item = &'a Replayed>) -> Result<u64> {
     let file = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
     let mut sink = CandumpWriter::new(std::io::BufWriter::new(file), DEFAULT_IFACE);
-    let mut base_us = 0u64;
+    let mut base_us = pbm::can::candump::LOG_EPOCH_US;
     for r in replays {
         for f in &r.frames {
             sink.send(base_us + f.time_us, &f.frame).with_context(|| format!("cannot write {}", path.display()))?;

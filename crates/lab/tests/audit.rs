@@ -251,3 +251,42 @@ fn the_audit_reconstructs_what_is_missing() {
     assert_eq!(out.cause, "none");
     assert!(!out.missing[0].significant(), "{}", out.missing[0].description);
 }
+
+/// A short event (a sticky spot mid-stroke: the pressure dips 0.05 bar for 0.4 s, 15 noise σ of
+/// the mean release) barely moves the RMS over the whole release, but the audit must not call it
+/// `none` (an independent tester's plant got `none` here): the worst 1 s window is above its
+/// floor and the reconstruction finds the event.
+#[test]
+fn a_short_event_is_not_none() {
+    let seed = first_seed(1) + pbm_lab::audit_sweep::NULL_SEED_OFFSET;
+    let clean = synth_data(seed, &[], RELEASES_PER_CASE).expect("data");
+    let out = audit(&clean, AuditOptions::default()).expect("audit runs");
+    assert_eq!(out.cause, "none");
+    assert!(out.window_to_noise.0 <= 2.0, "clean worst window {}", out.window_to_noise.0);
+    let mut data = clean;
+    let dip = |i: usize| {
+        let t = i as f64 * 0.01;
+        if (12.0..12.4).contains(&t) {
+            -0.05 * (1.0 - ((t - 12.2) / 0.2).abs())
+        } else {
+            0.0
+        }
+    };
+    for g in &mut data.groups {
+        for (i, v) in g.mean.iter_mut().enumerate() {
+            *v += dip(i);
+        }
+        for t in &mut g.traces {
+            for (i, v) in t.iter_mut().enumerate() {
+                *v += dip(i);
+            }
+        }
+    }
+    let out = audit(&data, AuditOptions::default()).expect("audit runs");
+    eprint!("{}", out.summary());
+    assert_ne!(out.cause, "none", "{}", out.verdict_text());
+    assert!(!out.explains_all());
+    assert!(out.window_to_noise.0 > pbm_lab::audit::WINDOW_FLOOR_RATIO, "{}", out.window_to_noise.0);
+    let seg = out.missing[0].segments.iter().find(|s| s.t_s.0 <= 12.4 && s.t_s.1 >= 12.0);
+    assert!(seg.is_some(), "{}", out.missing[0].description);
+}

@@ -58,9 +58,15 @@ fn demo_stream_decodes_cleanly_and_covers_every_code() {
     ] {
         assert!(text.contains(label), "display shows {label}");
     }
-    // Status at 1 Hz: one per 100 samples of the whole log.
-    let last_us = frames.last().unwrap().0;
-    assert_eq!(s.status_reports, last_us / 1_000_000 + 1);
+    // Status at 1 Hz: one per 100 samples of the whole log, stamped from the log epoch.
+    let (first_us, last_us) = (frames[0].0, frames.last().unwrap().0);
+    assert_eq!(first_us, pbm::can::candump::LOG_EPOCH_US);
+    assert_eq!(s.status_reports, (last_us - first_us) / 1_000_000 + 1);
+    // Every fault report names its locomotive and release (9 releases of locomotive 7; the
+    // power-up is release number 1).
+    for release in 2..=10 {
+        assert!(text.contains(&format!("loco  7 release {release:>2}  ")), "release {release}");
+    }
 }
 
 #[test]
@@ -74,7 +80,7 @@ fn candump_log_round_trips_the_stream() {
     let back: Vec<(u64, CanFrame)> = read_log(&text[..]).map(|r| r.map(|r| (r.time_us, r.frame)).unwrap()).collect();
     assert_eq!(back, frames);
     let first = String::from_utf8(text[..50].to_vec()).unwrap();
-    assert!(first.starts_with("(0000000000.000000) can0 18FF5180#"), "{first}");
+    assert!(first.starts_with("(1767225600.000000) can0 18FF5180#"), "absolute time stamps: {first}");
 }
 
 #[test]
@@ -85,7 +91,8 @@ fn tampered_stream_is_flagged_frame_by_frame() {
     let status_idx: Vec<usize> = (0..clean.len()).filter(|&i| !is_fault(&clean[i].1)).collect();
     let mut frames = clean.clone();
 
-    // Corrupt one bit of fault report #5: wrong CRC, and #6 then follows a lost frame.
+    // Corrupt one bit of fault report #5: wrong CRC, and the next status frame (or #6) reports
+    // it lost.
     let (t, f) = frames[fault_idx[5]];
     let mut data = f.data().to_vec();
     data[3] ^= 0x10;
@@ -105,16 +112,18 @@ fn tampered_stream_is_flagged_frame_by_frame() {
     let (s, text) = display(&frames);
     let get = |k: &str| s.flagged.get(k).copied().unwrap_or(0);
     assert_eq!(get("wrong_crc"), 1, "{s}");
-    assert_eq!(get("repeated_counter"), 1, "{s}");
-    // The frame after the corrupted one and the status frame after the dropped one.
-    assert_eq!(get("skipped_counter"), 2, "{s}");
+    // The copy of #20 arrives with it: sooner than the sender ever repeats a report.
+    assert_eq!(get("rate_exceeded"), 1, "{s}");
     assert_eq!(get("unknown_id"), 2, "{s}");
     assert_eq!(get("remote_frame"), 2, "{s}");
     assert_eq!(get("wrong_length"), 1, "{s}");
-    assert_eq!(s.flagged_total(), 9);
-    assert_eq!(s.fault_reports, clean_summary.fault_reports - 2);
-    assert_eq!(s.status_reports, clean_summary.status_reports - 2);
-    assert_eq!(text.matches("!! ").count(), 9);
+    assert_eq!(s.flagged_total(), 7);
+    // The corrupted report and the dropped status frame are reported lost; nothing genuine is
+    // rejected.
+    assert_eq!((s.lost_fault_reports, s.lost_status), (1, 1), "{s}");
+    assert_eq!(s.fault_reports, clean_summary.fault_reports - 1);
+    assert_eq!(s.status_reports, clean_summary.status_reports - 1);
+    assert_eq!(text.matches("!! ").count(), 7 + 2);
 }
 
 #[test]
@@ -124,9 +133,9 @@ fn reordered_frames_are_flagged() {
     let (a, b) = (fault_idx[10], fault_idx[11]);
     frames.swap(a, b);
     let (s, _) = display(&frames);
-    assert_eq!(s.flagged.get("skipped_counter"), Some(&1), "{s}");
-    assert_eq!(s.flagged.get("out_of_order"), Some(&1), "{s}");
-    assert_eq!(s.flagged_total(), 2);
+    // #11 first (its time stamp with it): #10 reported lost; then #10, older: flagged.
+    assert_eq!(s.flagged_total(), 1, "{s}");
+    assert_eq!(s.lost_fault_reports, 1, "{s}");
 }
 
 #[test]
@@ -246,22 +255,41 @@ fn malformed_trace_is_skipped_and_the_can_log_holds_the_rest() {
     assert_eq!(s.fault_reports, items.len() as u64 - 1, "{s}");
 }
 
-/// A monitor that restarts within the heartbeat timeout is not trusted at once: its first
-/// frames are flagged out of order until the tracker resynchronises (3 in a row).
+/// A monitor that restarts (a new release number for the power-up, counters from 0) within the
+/// heartbeat timeout is not trusted at once: its frames are flagged (their counters go back)
+/// until the session times out (no accepted heartbeat for 3 s); then the restart is accepted.
+/// The same frames replayed (the old release number) are never accepted.
 #[test]
 fn restart_without_silence_is_flagged_then_resynchronised() {
+    use pbm::can::codec::{decode_frame, status_link};
     let clean = demo_frames();
-    // The first 10 s of the stream, then the same stream again 2 s later (a quick restart).
-    let head: Vec<(u64, CanFrame)> = clean.iter().copied().filter(|(t, _)| *t < 10_000_000).collect();
-    let last = head.last().unwrap().0;
+    // The first 10 s of the stream, then a restart 2 s later (a quick restart).
+    let t0 = clean[0].0;
+    let head: Vec<(u64, CanFrame)> = clean.iter().copied().filter(|(t, _)| *t < t0 + 10_000_000).collect();
+    assert!(head.iter().all(|(_, f)| f.raw_id() == STATUS.raw_id()));
+    let restarted: Vec<(u64, CanFrame)> = head
+        .iter()
+        .map(|(t, f)| {
+            let mut link = status_link(u64::from_le_bytes(f.data().try_into().unwrap()));
+            link.identity.release += 2;
+            let Ok((pbm::can::Report::Status(s), _)) = decode_frame(f, link.identity) else { panic!() };
+            (*t, pbm::can::encode_status(&s, link))
+        })
+        .collect();
+    let last = head.last().unwrap().0 - t0;
     let mut frames = head.clone();
-    frames.extend(head.iter().map(|(t, f)| (t + last + 2_000_000, *f)));
+    frames.extend(restarted.iter().map(|(t, f)| (t + last + 2_000_000, *f)));
     let (s, _) = display(&frames);
-    assert_eq!(s.heartbeat_losses, 0, "{s}");
+    assert_eq!(s.heartbeat_losses, 1, "{s}");
     assert!(s.flagged_total() > 0, "{s}");
-    // The same restart after a 5 s silence: accepted at once.
+    // The restart after a 5 s silence: accepted at once.
+    let mut frames = head.clone();
+    frames.extend(restarted.iter().map(|(t, f)| (t + last + 5_000_000, *f)));
+    let (s, _) = display(&frames);
+    assert_eq!((s.heartbeat_losses, s.flagged_total()), (1, 0), "{s}");
+    // The old frames again after the silence: a replay, every one flagged.
     let mut frames = head.clone();
     frames.extend(head.iter().map(|(t, f)| (t + last + 5_000_000, *f)));
     let (s, _) = display(&frames);
-    assert_eq!((s.heartbeat_losses, s.flagged_total()), (1, 0), "{s}");
+    assert_eq!(s.flagged_total(), head.len() as u64, "{s}");
 }

@@ -116,7 +116,29 @@ async fn valve_task(input: embassy_stm32::exti::ExtiInput<'static, embassy_stm32
 /// Runs the core pipeline on every sample and reports its cycle counts.
 #[embassy_executor::task]
 async fn monitor_task(cycles: DwtCycles) {
-    app::monitor_loop(cycles).await;
+    app::monitor_loop(cycles, pbm::can::Identity { locomotive: LOCOMOTIVE, release: 0 }).await;
+}
+
+/// The locomotive number the CAN frames carry (0–63): `PBM_LOCOMOTIVE` at build time, 0 without
+/// it. The release number starts at 0 on every power-up: this image keeps no non-volatile
+/// counter yet, so a display tells a restarted monitor from a replay by the heartbeat only.
+const LOCOMOTIVE: u8 = match option_env!("PBM_LOCOMOTIVE") {
+    Some(text) => parse_locomotive(text.as_bytes()),
+    None => 0,
+};
+
+/// `text` as a decimal 0–63 (a build error otherwise).
+const fn parse_locomotive(text: &[u8]) -> u8 {
+    let mut value: u32 = 0;
+    let mut i = 0;
+    while i < text.len() {
+        let d = text[i];
+        assert!(d.is_ascii_digit(), "PBM_LOCOMOTIVE must be a decimal number 0-63");
+        value = value * 10 + (d - b'0') as u32;
+        assert!(value <= 63, "PBM_LOCOMOTIVE must be 0-63");
+        i += 1;
+    }
+    value as u8
 }
 
 /// Sends the monitor's frames on bxCAN1.

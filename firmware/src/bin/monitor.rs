@@ -16,8 +16,8 @@
 
 use embassy_executor::Spawner;
 use embedded_can::blocking::Can as _;
-use pbm::can::CanFrame;
-use pbm_firmware::adc::{Paced, TraceAdc, TraceValve, ADC_TRACE, ADC_TRACE_NAME};
+use pbm::can::{CanFrame, Identity};
+use pbm_firmware::adc::{Paced, TraceAdc, TraceValve, ADC_TRACE, ADC_TRACE_LOCOMOTIVE, ADC_TRACE_NAME};
 use pbm_firmware::app::{self, CountingWatchdog, FrameSink, NoCycles};
 use pbm_firmware::candump::CandumpCan;
 use pbm_firmware::console::exit;
@@ -70,7 +70,9 @@ async fn adc_task() {
 /// Runs the core pipeline on every sample.
 #[embassy_executor::task]
 async fn monitor_task() {
-    app::monitor_loop(NoCycles).await;
+use pbm::can::{CanFrame, Identity};
+use pbm_firmware::adc::{Paced, TraceAdc, TraceValve, ADC_TRACE, ADC_TRACE_LOCOMOTIVE, ADC_TRACE_NAME};
+use pbm_firmware::app::{self, CountingWatchdog, FrameSink, NoCycles};
 }
 
 /// Writes the frames as candump lines; ends the run after the end of the trace.
