@@ -73,6 +73,11 @@ pub struct CanReporter {
     /// Last fault report sent, quantised, with its time field zeroed (the change key).
     last_fault_key: Option<FaultReport>,
     samples_since_fault: u32,
+    /// Samples since the release command (the command's sample is 0): the time field of every
+    /// fault report sent is at least this, so a closed diagnosis repeated (or withdrawn) while
+    /// the valve stays open carries the time it is sent, not the frozen time of its close: a
+    /// receiver's freshness check needs a time that moves on.
+    samples_since_release: u32,
 }
 
 impl CanReporter {
@@ -85,6 +90,7 @@ impl CanReporter {
             identity: Identity { locomotive: 0, release: 0 },
             last_fault_key: None,
             samples_since_fault: FAULT_MIN_GAP_SAMPLES,
+            samples_since_release: 0,
         }
     }
 
@@ -108,12 +114,13 @@ impl CanReporter {
     pub fn new_release(&mut self) {
         self.identity.release = (self.identity.release + 1) & 0x3F;
         self.last_fault_key = None;
+        self.samples_since_release = 0;
     }
 
     /// Call once per monitor sample with the current status, the current fault report (if the
     /// monitor has one) and whether a release is in progress (valve command on).
     pub fn step(&mut self, status: &StatusReport, fault: Option<&FaultReport>, release_active: bool) -> Outbox {
-        let mut out = self.fault_frame(fault, release_active, self.samples_since_fault);
+        let mut out = self.fault_frame(fault, release_active, self.samples_since_fault, self.samples_since_release);
         if self.status_countdown == 0 {
             let link =
                 StatusLink { counter: self.status_counter, identity: self.identity, fault_count: self.fault_counter };
@@ -124,6 +131,7 @@ impl CanReporter {
             self.status_countdown -= 1;
         }
         self.samples_since_fault = self.samples_since_fault.saturating_add(1);
+        self.samples_since_release = self.samples_since_release.saturating_add(1);
         out
     }
 
@@ -131,14 +139,19 @@ impl CanReporter {
     /// the schedule allows it, no status frame (the status period is not shortened).
     pub fn close_tick(&mut self, fault: &FaultReport) -> Outbox {
         // `step` already counted the last sample as elapsed.
-        let out = self.fault_frame(Some(fault), false, self.samples_since_fault.saturating_sub(1));
+        let out = self.fault_frame(
+            Some(fault),
+            false,
+            self.samples_since_fault.saturating_sub(1),
+            self.samples_since_release.saturating_sub(1),
+        );
         if !out.as_slice().is_empty() {
             self.samples_since_fault = 1;
         }
         out
     }
 
-    fn fault_frame(&mut self, fault: Option<&FaultReport>, release_active: bool, elapsed: u32) -> Outbox {
+    fn fault_frame(&mut self, fault: Option<&FaultReport>, release_active: bool, elapsed: u32, now: u32) -> Outbox {
         let mut out = Outbox::empty();
         if let Some(report) = fault {
             let key = FaultReport { time_since_release_cs: 0, ..quantize_fault(report) };
@@ -151,7 +164,10 @@ impl CanReporter {
                 Some(_) => release_active && elapsed >= FAULT_REPEAT_SAMPLES,
             };
             if due {
-                out.push(encode_fault(report, self.fault_counter, self.identity));
+                let now = now.min(u32::from(u16::MAX)) as u16;
+                let sent =
+                    FaultReport { time_since_release_cs: report.time_since_release_cs.max(now), ..*report };
+                out.push(encode_fault(&sent, self.fault_counter, self.identity));
                 self.fault_counter = (self.fault_counter + 1) & 0xF;
                 self.last_fault_key = Some(key);
                 self.samples_since_fault = 0;

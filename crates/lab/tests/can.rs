@@ -293,3 +293,54 @@ fn restart_without_silence_is_flagged_then_resynchronised() {
     let (s, _) = display(&frames);
     assert_eq!(s.flagged_total(), head.len() as u64, "{s}");
 }
+
+/// A genuine monitor whose release valve stays open past the 60 s diagnosis timeout repeats its
+/// closed report every second (and withdraws it if the sensor fails after the close): each
+/// repeat carries the time it is sent, so the cab display accepts them. An independent tester
+/// found every repeat rejected as stale (time frozen at the close) and `--strict` failing on
+/// genuine output.
+#[test]
+fn a_closed_report_repeated_while_the_valve_stays_open_is_accepted() {
+    let source = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tests/data/small/traces/test/air_leak_0000.csv");
+    let text = std::fs::read_to_string(source).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_owned).collect();
+    let last = lines.last().cloned().unwrap();
+    let adc: i64 = last.split(',').nth(1).unwrap().trim().parse().unwrap();
+    // 60 s more around the last reading (a little noise, so the sensor is not frozen): 120 s
+    // with the valve open.
+    for i in 6000..12000i64 {
+        lines.push(format!("{:.2},{}", i as f64 * 0.01, adc + (i * 7919) % 5 - 2));
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let set = dir.path().join("set");
+    std::fs::create_dir_all(&set).unwrap();
+    std::fs::write(set.join("long.csv"), lines.join("\n") + "\n").unwrap();
+    std::fs::write(set.join("manifest.csv"), "file,label,locomotive,split\nlong.csv,air_leak,loco-09,test\n").unwrap();
+    let (items, skipped) = pbm_lab::replay::items(&set, None).unwrap();
+    assert!(skipped.is_empty(), "{skipped}");
+    let log = dir.path().join("long.log");
+    pbm_lab::replay::replay_to_can_log(&log, &items).unwrap();
+    let bytes = std::fs::read(&log).unwrap();
+    let mut out = Vec::new();
+    let mut d = CabDisplay::new(&mut out, false, DecodeFormat::Text);
+    decode_log(&bytes[..], &mut d).unwrap();
+    let s = d.finish().unwrap();
+    assert_eq!(s.flagged_total(), 0, "{s}\n{}", String::from_utf8_lossy(&out));
+    assert!(s.fault_reports >= 60, "the closed report is repeated every second: {s}");
+    // And the same with a frozen sensor after the close: the withdrawal is accepted too.
+    let mut frozen: Vec<String> = text.lines().map(str::to_owned).collect();
+    for i in 6000..12000i64 {
+        frozen.push(format!("{:.2},{adc}", i as f64 * 0.01));
+    }
+    std::fs::write(set.join("long.csv"), frozen.join("\n") + "\n").unwrap();
+    let (items, _) = pbm_lab::replay::items(&set, None).unwrap();
+    pbm_lab::replay::replay_to_can_log(&log, &items).unwrap();
+    let bytes = std::fs::read(&log).unwrap();
+    let mut out = Vec::new();
+    let mut d = CabDisplay::new(&mut out, false, DecodeFormat::Text);
+    decode_log(&bytes[..], &mut d).unwrap();
+    let s = d.finish().unwrap();
+    let shown = String::from_utf8_lossy(&out).to_string();
+    assert_eq!(s.flagged_total(), 0, "{s}\n{shown}");
+    assert!(shown.lines().last().is_some_and(|l| !l.contains("air_leak")), "the withdrawal is shown: {shown}");
+}
