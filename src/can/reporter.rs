@@ -165,8 +165,7 @@ impl CanReporter {
             };
             if due {
                 let now = now.min(u32::from(u16::MAX)) as u16;
-                let sent =
-                    FaultReport { time_since_release_cs: report.time_since_release_cs.max(now), ..*report };
+                let sent = FaultReport { time_since_release_cs: report.time_since_release_cs.max(now), ..*report };
                 out.push(encode_fault(&sent, self.fault_counter, self.identity));
                 self.fault_counter = (self.fault_counter + 1) & 0xF;
                 self.last_fault_key = Some(key);
