@@ -1093,25 +1093,7 @@ pub struct Diagnostics {
     pub worst_window: (f64, f64),
 }
 
-const PHASES: [&str; 3] = ["filling at rest", "stroke", "end stop / plateau"];
-
-fn phase_of(x_mm: &[f64], stroke_mm: f64) -> Vec<usize> {
-    let mut moved = false;
-    x_mm.iter()
-        .map(|&x| {
-            if x > 1e-6 {
-                moved = true;
-            }
-            if x >= stroke_mm - 1e-3 {
-                2
-            } else if moved {
-                1
-            } else {
-                0
-            }
-        })
-        .collect()
-}
+use crate::missing_flow::{phase_of, PHASES};
 
 /// Sample autocorrelation of `r` at lags 1..=`lags`.
 pub fn acf(r: &[f64], lags: usize) -> Vec<f64> {

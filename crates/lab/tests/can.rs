@@ -299,6 +299,16 @@ fn restart_without_silence_is_flagged_then_resynchronised() {
 /// repeat carries the time it is sent, so the cab display accepts them. An independent tester
 /// found every repeat rejected as stale (time frozen at the close) and `--strict` failing on
 /// genuine output.
+/// Decodes a candump log as the cab display does: its summary and the text it shows.
+fn decode_file(log: &std::path::Path) -> (DecodeSummary, String) {
+    let bytes = std::fs::read(log).unwrap();
+    let mut out = Vec::new();
+    let mut d = CabDisplay::new(&mut out, false, DecodeFormat::Text);
+    decode_log(&bytes[..], &mut d).unwrap();
+    let s = d.finish().unwrap();
+    (s, String::from_utf8_lossy(&out).into_owned())
+}
+
 #[test]
 fn a_closed_report_repeated_while_the_valve_stays_open_is_accepted() {
     let source = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tests/data/small/traces/test/air_leak_0000.csv");
@@ -320,12 +330,8 @@ fn a_closed_report_repeated_while_the_valve_stays_open_is_accepted() {
     assert!(skipped.is_empty(), "{skipped}");
     let log = dir.path().join("long.log");
     pbm_lab::replay::replay_to_can_log(&log, &items).unwrap();
-    let bytes = std::fs::read(&log).unwrap();
-    let mut out = Vec::new();
-    let mut d = CabDisplay::new(&mut out, false, DecodeFormat::Text);
-    decode_log(&bytes[..], &mut d).unwrap();
-    let s = d.finish().unwrap();
-    assert_eq!(s.flagged_total(), 0, "{s}\n{}", String::from_utf8_lossy(&out));
+    let (s, shown) = decode_file(&log);
+    assert_eq!(s.flagged_total(), 0, "{s}\n{shown}");
     assert!(s.fault_reports >= 60, "the closed report is repeated every second: {s}");
     // And the same with a frozen sensor after the close: the withdrawal is accepted too.
     let mut frozen: Vec<String> = text.lines().map(str::to_owned).collect();
@@ -335,12 +341,7 @@ fn a_closed_report_repeated_while_the_valve_stays_open_is_accepted() {
     std::fs::write(set.join("long.csv"), frozen.join("\n") + "\n").unwrap();
     let (items, _) = pbm_lab::replay::items(&set, None).unwrap();
     pbm_lab::replay::replay_to_can_log(&log, &items).unwrap();
-    let bytes = std::fs::read(&log).unwrap();
-    let mut out = Vec::new();
-    let mut d = CabDisplay::new(&mut out, false, DecodeFormat::Text);
-    decode_log(&bytes[..], &mut d).unwrap();
-    let s = d.finish().unwrap();
-    let shown = String::from_utf8_lossy(&out).to_string();
+    let (s, shown) = decode_file(&log);
     assert_eq!(s.flagged_total(), 0, "{s}\n{shown}");
     assert!(shown.lines().last().is_some_and(|l| !l.contains("air_leak")), "the withdrawal is shown: {shown}");
 }
