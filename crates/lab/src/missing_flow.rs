@@ -40,7 +40,11 @@
 //! stroke: a force changes the motion, hence `dV/dt`, and shows as an equivalent flow. At rest
 //! (before breakaway and at the end stop) the volume is fixed and the reconstruction is a flow.
 //! A transducer fault (offset, lag) also shows as an equivalent flow. Edges of sharp events
-//! (the valve opening, the end stop) are smeared over ± 0.1 s by the filter.
+//! (the valve opening, the end stop) are smeared over ± 0.1 s by the filter. The reconstruction
+//! is against the *fitted* base: when a large missing effect pulls the fitted preload or
+//! friction to the edge of their tolerance, the modelled breakaway or end stop moves, and a
+//! spurious window can appear there (an independent tester saw them around 4 bar and at the
+//! end stop; driving the piston with the documented forces instead made clean releases worse).
 
 use pbm::params::{circle_area, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
 use pbm::twin::SAMPLE_PERIOD_S;
