@@ -1286,6 +1286,22 @@ pub struct AuditOutcome {
 /// chosen, and a chosen cause is reported as explaining only part of the discrepancy.
 pub const NOISE_FLOOR_RATIO: f64 = 2.0;
 
+/// Whether a cause that leaves `chosen`× the noise of the base model's `base`× explains too
+/// little to be named ([`MAX_PARTIAL_LEFT`]; brake and reservoir audits).
+pub(crate) fn explains_too_little(base: f64, chosen: f64) -> bool {
+    chosen > NOISE_FLOOR_RATIO && chosen > MAX_PARTIAL_LEFT * base
+}
+
+/// The verdict's name: the chosen candidate's, else `none` when the base model is at the noise
+/// floor and `unexplained` when it is not (brake and reservoir audits).
+pub(crate) fn cause_name(chosen: Option<&str>, base_at_floor: bool) -> String {
+    match (chosen, base_at_floor) {
+        (Some(name), _) => name.to_owned(),
+        (None, true) => "none".to_owned(),
+        (None, false) => "unexplained".to_owned(),
+    }
+}
+
 /// Samples of the windows of [`AuditOutcome::window_to_noise`] (1 s).
 pub const WINDOW_SAMPLES: usize = 100;
 /// Largest RMS residual of any 1 s window, in noise σ of the mean release, that a model may
@@ -1602,7 +1618,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     // discrepancy (a discharge coefficient of 0.6 for a valve that opens 4.7 s late) is not one.
     let mut flagged = flagged;
     let (rb, rc) = (to_noise(base.rss), to_noise(chosen.rss));
-    if terms(&chosen) > 0 && rc > NOISE_FLOOR_RATIO && rc > MAX_PARTIAL_LEFT * rb {
+    if terms(&chosen) > 0 && explains_too_little(rb, rc) {
         flagged.insert(
             0,
             format!(
@@ -1660,11 +1676,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     };
     let window_to_noise = (window_to_noise(&base_preds), window_to_noise(&chosen_preds));
     let at_floor = residual_to_noise.0 <= NOISE_FLOOR_RATIO && window_to_noise.0 <= WINDOW_FLOOR_RATIO;
-    let cause = match (terms(&chosen) == 0, at_floor) {
-        (true, true) => "none".to_owned(),
-        (true, false) => "unexplained".to_owned(),
-        (false, _) => chosen.name.clone(),
-    };
+    let cause = cause_name((terms(&chosen) > 0).then_some(chosen.name.as_str()), at_floor);
     let per_trace = |preds: &[(Vec<f64>, Vec<f64>)]| {
         let v: Vec<f64> = data
             .groups
@@ -1731,14 +1743,7 @@ pub fn noise_correlation(data: &AuditData, lag: usize) -> f64 {
                 noise_lag1(t).powi(lag as i32)
             } else {
                 let e: Vec<f64> = t.iter().zip(&g.mean).map(|(a, m)| a - m).collect();
-                let m = e.iter().sum::<f64>() / e.len().max(1) as f64;
-                let den: f64 = e.iter().map(|v| (v - m) * (v - m)).sum();
-                let num: f64 = e.windows(lag + 1).map(|w| (w[0] - m) * (w[lag] - m)).sum();
-                if den > 0.0 {
-                    num / den
-                } else {
-                    0.0
-                }
+                acf(&e, lag).last().copied().unwrap_or(0.0)
             };
             sum += t.len() as f64 * rho;
             weight += t.len() as f64;

@@ -46,7 +46,7 @@
 
 use crate::audit::{
     inverse_diag, levenberg_marquardt, noise_sigma, ranking_line, verdict_json, RankedFit, RankingJson, VerdictJson,
-    BIC_THRESHOLD, MAX_PARTIAL_LEFT, MIN_RSS_RATIO, NOISE_FLOOR_RATIO,
+    BIC_THRESHOLD, MIN_RSS_RATIO, NOISE_FLOOR_RATIO,
 };
 use crate::random::{normal_pair, unit};
 use anyhow::{Context, Result};
@@ -586,33 +586,23 @@ impl AlignedRate {
 /// The significant bins of `rates` as windows in words, e.g. "an extra outflow from 60 to 180 s
 /// after the compressor unloads (up to 0.022 bar/min)".
 pub fn describe_aligned(rates: &[AlignedRate]) -> String {
+    let joins = |a: &AlignedRate, b: &AlignedRate| {
+        b.phase == a.phase
+            && b.mean_bar_per_min.signum() == a.mean_bar_per_min.signum()
+            && (b.from_s - a.from_s - a.width_s).abs() < 1e-9
+    };
     let mut parts = Vec::new();
-    let mut i = 0;
-    while i < rates.len() {
-        let a = &rates[i];
-        if !a.significant() {
-            i += 1;
-            continue;
-        }
-        let sign = a.mean_bar_per_min.signum();
-        let mut j = i;
-        while j + 1 < rates.len()
-            && rates[j + 1].significant()
-            && rates[j + 1].phase == a.phase
-            && rates[j + 1].mean_bar_per_min.signum() == sign
-            && (rates[j + 1].from_s - rates[j].from_s - a.width_s).abs() < 1e-9
-        {
-            j += 1;
-        }
-        let peak = rates[i..=j].iter().map(|r| r.mean_bar_per_min.abs()).fold(0.0, f64::max);
+    for r in crate::missing_flow::runs(rates, AlignedRate::significant, joins) {
+        let run = &rates[r];
+        let (first, last) = (&run[0], &run[run.len() - 1]);
+        let peak = run.iter().map(|r| r.mean_bar_per_min.abs()).fold(0.0, f64::max);
         parts.push(format!(
             "an extra {} from {:.0} to {:.0} s after the compressor {} (up to {peak:.3} bar/min)",
-            if sign < 0.0 { "outflow" } else { "inflow" },
-            a.from_s,
-            rates[j].from_s + rates[j].width_s,
-            if a.phase == "loaded" { "loads" } else { "unloads" }
+            if first.mean_bar_per_min < 0.0 { "outflow" } else { "inflow" },
+            first.from_s,
+            last.from_s + last.width_s,
+            if first.phase == "loaded" { "loads" } else { "unloads" }
         ));
-        i = j + 1;
     }
     if parts.is_empty() {
         "no systematic unmodelled rate in the compressor cycle".to_owned()
@@ -799,16 +789,13 @@ pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
     let to_noise = |rss: f64| (rss / n.max(1) as f64).sqrt();
     let mut note = None;
     let (rb, rc) = (to_noise(base.rss), to_noise(chosen.rss));
-    if !chosen.effects.is_empty() && rc > NOISE_FLOOR_RATIO && rc > MAX_PARTIAL_LEFT * rb {
+    if !chosen.effects.is_empty() && crate::audit::explains_too_little(rb, rc) {
         note = Some(format!("{} leaves {rc:.1}× of the base's {rb:.1}× the noise: too little explained", chosen.name));
         chosen = base.clone();
     }
     let residual_to_noise = (rb, to_noise(chosen.rss));
-    let cause = match (chosen.effects.is_empty(), rb <= NOISE_FLOOR_RATIO) {
-        (true, true) => "none".to_owned(),
-        (true, false) => "unexplained".to_owned(),
-        (false, _) => chosen.name.clone(),
-    };
+    let cause =
+        crate::audit::cause_name((!chosen.effects.is_empty()).then_some(chosen.name.as_str()), rb <= NOISE_FLOOR_RATIO);
     Ok(MetroOutcome {
         cause,
         residual_to_noise,

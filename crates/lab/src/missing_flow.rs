@@ -358,22 +358,37 @@ pub fn reconstruct(params: &TwinParams, measured_bar_g: &[f64], sigma_bar: f64) 
     Reconstruction { blocks, segments, terms, explained, max_z, description }
 }
 
-/// Runs of significant blocks of one sign.
-fn segments(blocks: &[Block]) -> Vec<Segment> {
-    let sig = |b: &Block| b.z().abs() >= Z_SIGNIFICANT;
+/// The maximal runs of consecutive `items` that `keep` accepts and that `joins` links pairwise
+/// (index ranges, in order): the windows of the brake's and the reservoir's reconstructions.
+pub(crate) fn runs<T>(
+    items: &[T],
+    keep: impl Fn(&T) -> bool,
+    joins: impl Fn(&T, &T) -> bool,
+) -> Vec<std::ops::Range<usize>> {
     let mut out = Vec::new();
     let mut i = 0;
-    while i < blocks.len() {
-        if !sig(&blocks[i]) {
+    while i < items.len() {
+        if !keep(&items[i]) {
             i += 1;
             continue;
         }
-        let sign = blocks[i].z().signum();
-        let mut j = i;
-        while j + 1 < blocks.len() && sig(&blocks[j + 1]) && blocks[j + 1].z().signum() == sign {
+        let mut j = i + 1;
+        while j < items.len() && keep(&items[j]) && joins(&items[j - 1], &items[j]) {
             j += 1;
         }
-        let run = &blocks[i..=j];
+        out.push(i..j);
+        i = j;
+    }
+    out
+}
+
+/// Runs of significant blocks of one sign.
+fn segments(blocks: &[Block]) -> Vec<Segment> {
+    let mut out = Vec::new();
+    let sig = |b: &Block| b.z().abs() >= Z_SIGNIFICANT;
+    for r in runs(blocks, sig, |a, b| a.z().signum() == b.z().signum()) {
+        let run = &blocks[r];
+        let sign = run[0].z().signum();
         if run.len() >= 2 || run[0].z().abs() >= Z_SINGLE_BLOCK {
             let half = BLOCK_SAMPLES as f64 * SAMPLE_PERIOD_S / 2.0;
             let span = |f: fn(&Block) -> f64| {
@@ -397,7 +412,6 @@ fn segments(blocks: &[Block]) -> Vec<Segment> {
                 phases,
             });
         }
-        i = j + 1;
     }
     out
 }
