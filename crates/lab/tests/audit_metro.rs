@@ -30,8 +30,11 @@ fn metro_audit_names_heat_transfer() {
 /// Issue 17: the real-data model is not at the noise floor, and the audit must say so instead
 /// of presenting heat transfer + delay as the whole story, and say what is still missing: an
 /// extra outflow one to three minutes after each unloading (the chosen model leaves
-/// −0.022 bar/min there, ≈ 12 standard errors), while the loaded phase's error is what the
-/// 10 s sampling of the compressor switch alone leaves.
+/// −0.022 bar/min there, ≈ 12 standard errors) and less outflow than modelled late in the decay
+/// (8.1–8.4 bar). The compressor switches are estimated inside their 10 s sampling intervals,
+/// which halves the loading phase's error; the cycles, taken as replicates, differ by ≈ 8× the
+/// transducer noise (consumption the record does not hold), and the model's error common to all
+/// cycles is beyond that variation.
 #[test]
 fn metro_audit_says_what_the_real_data_model_still_misses() {
     let (_, out) = audit_metro_file(Path::new(METRO)).expect("audit runs");
@@ -47,12 +50,23 @@ fn metro_audit_says_what_the_real_data_model_still_misses() {
         out.missing
     );
     assert!(text.contains("extra outflow from 60 to 180 s after the compressor unloads"), "{text}");
-    // The loaded phase's error is within what the switch timing alone leaves.
+    assert!(text.contains("less outflow than modelled from 1500 to 2100 s after the compressor unloads"), "{text}");
+    // With the switches estimated, the loaded phase's error is well under what the switch
+    // timing alone leaves at the midpoints (it was 0.058 bar, now 0.028 bar).
     let loaded_rms = out.chosen_phase_rms[0].1;
-    assert!(loaded_rms <= out.switch_timing_floor_bar, "{loaded_rms} vs {}", out.switch_timing_floor_bar);
+    assert!(loaded_rms <= 0.5 * out.switch_timing_floor_bar, "{loaded_rms} vs {}", out.switch_timing_floor_bar);
+    assert!(chosen < 0.25 * base, "{base} → {chosen}");
+    // The cycles as replicates: they differ well beyond the transducer noise, and the model's
+    // common error is beyond that.
+    let floor = out.cycle_floor.expect("the extract holds four complete cycles");
+    assert_eq!(floor.cycles, 4);
+    assert!(floor.spread_bar > 3.0 * out.sigma && floor.systematic(), "{floor:?}");
+    assert!(text.contains("the model still errs the same way in every cycle"), "{text}");
     let json = out.to_json();
     assert_eq!(json["explains_all"], false);
     assert!(json["unmodelled_rate"].as_array().is_some_and(|a| !a.is_empty()));
+    assert_eq!(json["cycle_floor"]["systematic"], true);
+    assert_eq!(json["switch_s"].as_array().map(Vec::len), Some(10));
 }
 
 #[test]
