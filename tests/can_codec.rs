@@ -796,7 +796,7 @@ fn a_latency_step_flags_one_heartbeat_then_resynchronises() {
     let s: Vec<(u64, CanFrame)> = g.iter().map(|&(t, f)| (if t >= 7_000_000 { t - 200_000 } else { t }, f)).collect();
     assert_eq!(flagged(&run(&s).0), 0);
     // A uniform delay of 400 ms from 10 s on: every heartbeat after it flagged; the fault
-    // reports after the heartbeat timeout are stale (not current), none is current.
+    // reports once a heartbeat is overdue are stale (not current).
     let s: Vec<(u64, CanFrame)> = g.iter().map(|&(t, f)| (if t >= 10_000_000 { t + 400_000 } else { t }, f)).collect();
     let mut d = Decoder::new();
     for (t, f) in &s {
@@ -805,7 +805,7 @@ fn a_latency_step_flags_one_heartbeat_then_resynchronises() {
             // (`untimely`; after the timeout `stale`: it does not continue the lost session.)
             assert!(r.result.is_err(), "{t}: {r:?}");
         }
-        if *t >= 13_500_000 && r.result.is_ok() {
+        if *t >= 11_100_000 && r.result.is_ok() {
             assert!(r.stale, "{t}: {r:?}");
             assert!(!d.is_current(*t, *t));
         }
@@ -886,9 +886,9 @@ fn a_crc_passing_release_corruption_does_not_reject_genuine_frames() {
     }
 }
 
-/// After the heartbeat timed out, new fault reports of the lost session are stale (not
-/// current) until a heartbeat reopens it; replays among them stay flagged. The tester found
-/// them shown as current.
+/// While a heartbeat is overdue, and after the heartbeat timed out, new fault reports of the
+/// session are stale (not current) until a heartbeat comes; replays among them stay flagged.
+/// The tester found them shown as current.
 #[test]
 fn fault_reports_after_a_heartbeat_timeout_are_not_current() {
     let g = genuine_stream(20);
@@ -900,7 +900,7 @@ fn fault_reports_after_a_heartbeat_timeout_are_not_current() {
     for (t, f) in &s {
         let r = d.receive(*t, f);
         assert!(r.result.is_ok(), "{t}: {r:?}");
-        let silent = (10_000_001..14_000_000).contains(t);
+        let silent = (8_050_001..14_000_000).contains(t);
         assert_eq!(r.stale, silent && !is_status(f), "{t}");
         if r.stale {
             stale += 1;
@@ -909,7 +909,7 @@ fn fault_reports_after_a_heartbeat_timeout_are_not_current() {
             assert!(d.is_current(*t, *t), "{t}");
         }
     }
-    assert_eq!(stale, 4);
+    assert_eq!(stale, 6);
 }
 
 /// A status frame replayed 4096 s (the counter's range) later collides with the genuine one of

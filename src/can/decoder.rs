@@ -176,9 +176,10 @@ pub struct Reception {
     /// This status frame continued a session lost to a silence and replaced a tentative
     /// session opened meanwhile: the frames accepted in that tentative session were replays.
     pub superseded: bool,
-    /// A fault report accepted while the heartbeat is lost (judged against the session lost to
-    /// the silence): it is not current and a display shows it as stale, until a heartbeat
-    /// reopens the session.
+    /// A fault report accepted while a heartbeat is overdue (more than a period and the
+    /// tolerance since the last accepted status frame) or lost (judged against the session lost
+    /// to the silence): no heartbeat on time vouches for it, so it is not current and a display
+    /// shows it as stale, until an accepted heartbeat comes.
     pub stale: bool,
 }
 
@@ -230,13 +231,15 @@ impl Decoder {
     }
 
     /// Whether a report accepted at `accepted_us` is still current at `now_us`: the session is
-    /// open, its heartbeat not silent for longer than [`HEARTBEAT_TIMEOUT_US`], and no newer
-    /// fault report was counted by the sender since. A display shows anything else as stale.
+    /// open, its heartbeat not silent for longer than [`HEARTBEAT_TIMEOUT_US`], no heartbeat
+    /// was overdue when it came or one came since, and no newer fault report was accepted since. A display shows anything else as stale.
     pub fn is_current(&self, accepted_us: u64, now_us: u64) -> bool {
         match self.session {
             Some(s) => {
                 now_us.saturating_sub(s.at_us) <= HEARTBEAT_TIMEOUT_US
                     && s.fault.is_some_and(|f| f.at_us == accepted_us)
+                    // Not accepted while a heartbeat was overdue (`Reception::stale`).
+                    && accepted_us.saturating_sub(s.at_us) < STATUS_PERIOD_US + TOLERANCE_US
             }
             None => false,
         }
@@ -650,6 +653,9 @@ impl Decoder {
             rec.lost_status = overdue - s.overdue_reported;
             s.overdue_reported = overdue;
         }
+        // No heartbeat on time vouches for it: accepted (it may be genuine: a status frame was
+        // lost), but not current (a delayed stream, whose heartbeats are flagged, shows here).
+        rec.stale = overdue > 0;
         if undo_release {
             self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
         }

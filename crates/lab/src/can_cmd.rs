@@ -125,8 +125,8 @@ pub struct DecodeSummary {
     /// Frames accepted in a tentative session that a continuing heartbeat then showed to be
     /// replays (counted once per superseded session).
     pub superseded: u64,
-    /// Fault reports that arrived while the heartbeat was lost: shown as stale, never as
-    /// current ([`pbm::can::Reception::stale`]).
+    /// Fault reports that arrived while a heartbeat was overdue or lost: shown as stale, never
+    /// as current ([`pbm::can::Reception::stale`]).
     pub stale_reports: u64,
 }
 
@@ -163,7 +163,7 @@ impl std::fmt::Display for DecodeSummary {
             write!(f, "; {} replayed sessions superseded", self.superseded)?;
         }
         if self.stale_reports > 0 {
-            write!(f, "; {} fault reports without heartbeat (shown stale)", self.stale_reports)?;
+            write!(f, "; {} fault reports with the heartbeat overdue (shown stale)", self.stale_reports)?;
         }
         if self.heartbeat_losses > 0 {
             write!(f, "; heartbeat lost {} times", self.heartbeat_losses)?;
@@ -435,7 +435,7 @@ impl<W: Write> CabDisplay<W> {
                 // No live heartbeat vouches for it: shown, never as the current report.
                 self.summary.fault_reports += 1;
                 self.summary.stale_reports += 1;
-                writeln!(self.out, "{}  [stale: no heartbeat]", fault_line(t, id, r))?;
+                writeln!(self.out, "{}  [stale: heartbeat overdue]", fault_line(t, id, r))?;
             }
             (Ok(Report::Fault(r)), DecodeFormat::Text) => {
                 self.summary.fault_reports += 1;
