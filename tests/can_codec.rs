@@ -942,3 +942,119 @@ fn a_lag_4096_status_replay_does_not_lock_out_the_heartbeat() {
         }
     }
 }
+
+/// The fault report's CRC binds the identity (locomotive, release) a report is attributed to.
+/// The identity's 12 bits enter the 8-bit CRC linearly, through a map with a 4-dimensional
+/// kernel: 15 nonzero (Δlocomotive, Δrelease) differences, e.g. locomotive 26 release 6 and
+/// locomotive 1 release 4, collide for every message (found by the independent attack test);
+/// the same locomotive with another release, or another locomotive with the same release,
+/// never collides. Measured here against a candidate that would make the collisions
+/// data-dependent — the identity also keying a rotation of the 56 data bits (three times the
+/// locomotive's low nibble, which tells apart the two identities of every kernel difference)
+/// — and what that candidate costs: the data ID no longer separates the two messages for
+/// every payload (a frame whose identifier bit 8 flips passes as the other message for about
+/// 1 in 256), so it is not on the wire (can/README.md).
+#[test]
+fn fault_crc_identity_collisions_measured() {
+    use pbm::can::codec::e2e_crc;
+    let mut x = 0x9E37_79B9_7F4A_7C15u64;
+    let mut rnd = || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x
+    };
+    // Messages as the monitor sends them: verdicts, counters, times, supplies, leaks.
+    let msgs: Vec<[u8; 8]> = (0..256)
+        .map(|_| {
+            let r = rnd();
+            let report = FaultReport {
+                verdict: if r % 7 == 0 {
+                    Verdict::CannotDiagnose(NoDiagnosis::TooShort)
+                } else {
+                    Verdict::Class { class: FaultClass::AirLeak, confidence_pct: (r >> 8) as u8 % 100 }
+                },
+                time_since_release_cs: (r >> 16) as u16 % 6_000,
+                supply_mbar: 6_000 + (r >> 32) as u16 % 3_000,
+                leak_um: if r & 0x100 == 0 { 0 } else { (r >> 48) as u16 % 2_000 },
+                release_completed: r & 0x200 != 0,
+            };
+            encode_fault(&report, (r >> 60) as u8, ID).data().try_into().unwrap()
+        })
+        .collect();
+    // On the wire: CRC over data ID, locomotive, release, bytes 1..7 (the core's, checked).
+    let linear = |id: Identity, p: &[u8; 8]| {
+        let input: Vec<u8> = [0x50, 0x2F, id.locomotive, id.release].iter().chain(&p[1..]).copied().collect();
+        reference_crc(&input)
+    };
+    assert!(msgs.iter().all(|p| linear(ID, p) == e2e_crc(FAULT_REPORT.data_id, Some(ID), p)));
+    // The candidate: bytes 1..7 rotated left by 3 × (locomotive mod 16) bits first.
+    let keyed = |id: Identity, p: &[u8; 8]| {
+        let v = u64::from_le_bytes(*p) >> 8;
+        let r = 3 * u32::from(id.locomotive & 0xF);
+        let v = ((v << r) | (v >> (56 - r))) & 0x00FF_FFFF_FFFF_FFFF;
+        let q = (v << 8).to_le_bytes();
+        linear(id, &q)
+    };
+    let mut stats = Vec::new();
+    for (name, crc) in
+        [("linear (on the wire)", &linear as &dyn Fn(Identity, &[u8; 8]) -> u8), ("keyed rotation", &keyed)]
+    {
+        // Every identity against four: collision counts over the 256 messages.
+        let (mut always, mut max, mut total, mut pairs) = (0, 0, 0u64, 0u64);
+        for a in
+            [ID, Identity { locomotive: 26, release: 6 }, Identity::default(), Identity { locomotive: 63, release: 63 }]
+        {
+            let ca: Vec<u8> = msgs.iter().map(|p| crc(a, p)).collect();
+            for b in (0..4096u16).map(|i| Identity { locomotive: (i & 63) as u8, release: (i >> 6) as u8 }) {
+                if b == a {
+                    continue;
+                }
+                let n = msgs.iter().zip(&ca).filter(|(p, c)| crc(b, p) == **c).count();
+                always += usize::from(n == msgs.len());
+                max = max.max(n);
+                total += n as u64;
+                pairs += 1;
+            }
+        }
+        let mean = total as f64 / pairs as f64 / msgs.len() as f64;
+        // Status frames whose identifier bit 8 flips, read as fault reports of ID (the same
+        // payload under the other data ID): how many pass the CRC.
+        let cross = msgs
+            .iter()
+            .filter(|p| {
+                let mut q = **p;
+                q[0] = e2e_crc(STATUS.data_id, None, p);
+                crc(ID, &q) == q[0]
+            })
+            .count();
+        eprintln!(
+            "{name}: {pairs} identity pairs x {} messages: {always} pairs collide on every message, worst \
+             other pair {}/{}, mean rate 1/{:.0}; status frames read as fault reports: {cross}/{}",
+            msgs.len(),
+            if always > 0 { msgs.len() } else { max },
+            msgs.len(),
+            1.0 / mean,
+            msgs.len()
+        );
+        stats.push((always, max, mean, cross));
+    }
+    // On the wire: each identity has 15 partners that collide always (4 identities: 60 pairs),
+    // the tester's example among them; the data ID separates the messages for every payload.
+    assert_eq!(stats[0].0, 60);
+    let (a, b) = (Identity { locomotive: 26, release: 6 }, Identity { locomotive: 1, release: 4 });
+    assert!(msgs.iter().all(|p| linear(a, p) == linear(b, p)));
+    assert_eq!(stats[0].3, 0);
+    // Same locomotive, other release; same release, other locomotive: never.
+    for p in &msgs {
+        for r in 1..64u8 {
+            assert_ne!(linear(ID, p), linear(Identity { release: (ID.release + r) & 63, ..ID }, p));
+            assert_ne!(linear(ID, p), linear(Identity { locomotive: (ID.locomotive + r) & 63, ..ID }, p));
+        }
+    }
+    // The candidate: no pair collides always, about 1 in 256 — and the data ID no longer
+    // separates the messages for every payload.
+    assert_eq!(stats[1].0, 0);
+    assert!(stats[1].1 <= 12, "worst pair {}/256", stats[1].1);
+    assert!((0.5 / 256.0..2.0 / 256.0).contains(&stats[1].2), "mean {}", stats[1].2);
+}

@@ -5,7 +5,8 @@
 //! Checks, in order: remote frame, identifier, length, CRC (the fault report's against the
 //! session's locomotive and release number, which its CRC covers), signal values, then the
 //! freshness rules below. A frame that fails any check is flagged with a [`FrameError`] and
-//! yields no report; **a flagged frame never changes the decoder's state**, so the genuine
+//! yields no report; **a flagged frame is never accepted and moves nothing** (its phase alone is
+//! kept, as evidence of a latency step the next genuine frame must confirm), so the genuine
 //! frames after a replayed, delayed or inserted one are judged against genuine data only. The
 //! decoder never panics on any input. `can/README.md` explains the choice of scheme, what it
 //! detects and what it cannot.
@@ -18,13 +19,26 @@
 //! - come at least 1 s − [`TOLERANCE_US`] after the last accepted one, else
 //!   [`FrameError::RateExceeded`] (a flood, an inserted or replayed frame);
 //! - carry a newer counter (`d = n − n_last mod 4096` in `1..2048`), else [`FrameError::Stale`];
-//! - have come `d` seconds after the last accepted one, within [`TOLERANCE_US`] plus 200 ppm
-//!   clock drift, else [`FrameError::Untimely`] (delayed, or a replay at the wrong moment);
-//! - not go back in release number, else [`FrameError::WrongRelease`].
+//! - have come `d` seconds after the session clock, within [`TOLERANCE_US`] plus 200 ppm
+//!   clock drift late or half a second early, else [`FrameError::Untimely`] (delayed, or a
+//!   replay at the wrong moment);
+//! - not go back in release number, else [`FrameError::WrongRelease`] (unless it goes back to
+//!   the release before a rise that rests on one heartbeat: that rise was a corruption the CRC
+//!   missed, and is undone).
+//!
+//! The session clock (when the next heartbeat is due) is the earliest receive time the
+//! accepted heartbeats imply; one early heartbeat does not move it, the next one early the
+//! same way does. A late heartbeat is flagged, but its phase is kept: when the next one is
+//! late the same way the latency rose (a latency step) and the clock follows, up to
+//! [`MAX_LATENCY_STEP_US`] after the earliest phase. A sender that restarts before its
+//! heartbeat times out (a newer release number, a counter not above the time since the last
+//! heartbeat) opens a new tentative session at once.
 //!
 //! `d − 1` heartbeats were lost ([`Reception::lost_status`]; a fault report that arrives when a
 //! heartbeat is overdue reports it at once); fault reports the sender counted but this receiver
-//! never accepted are reported as lost too ([`Reception::lost_fault_reports`]).
+//! never accepted are reported as lost too ([`Reception::lost_fault_reports`]), except the last
+//! one counted, which the status frame may have overtaken: owed until another frame comes
+//! ([`Decoder::owed_fault_reports`]).
 //!
 //! When no status frame was accepted for more than [`HEARTBEAT_TIMEOUT_US`] the session is lost
 //! (power cycle, bus-off, a gap between recordings): the held fault report is stale from then
@@ -40,18 +54,22 @@
 //! # Fault reports
 //!
 //! A fault report is attributed to the session's release, or to the next one when its time
-//! since release says the release began after the last heartbeat; its CRC must match that
-//! locomotive and release. Then:
-//! - at least 100 ms after the last accepted fault report, 1 s when its content is unchanged
-//!   (the sender's own bounds), else [`FrameError::RateExceeded`];
+//! since release says the release began after the last heartbeat (or to the release before a
+//! rise that rests on one heartbeat); its CRC must match that locomotive and release. Then:
+//! - at least 100 ms after the last accepted fault report, 0.75 s when its content is unchanged
+//!   and its counter the next (the sender's 1 s less the latency step followed), else
+//!   [`FrameError::RateExceeded`];
 //! - within its release, a larger time since release than the last accepted report, else
 //!   [`FrameError::Stale`], and that time must match the receive time since the release began
-//!   (within [`TOLERANCE_US`] and the field's 50 ms rounding), else [`FrameError::Untimely`];
+//!   (within [`TOLERANCE_US`] and the field's 50 ms rounding), else [`FrameError::Untimely`]
+//!   (two reports late the same way move the release start, as for the heartbeat);
 //! - the first report of a release must place the release command between the last heartbeat
 //!   of the previous release and the first of its own, else [`FrameError::Untimely`];
 //! - its counter may jump ahead (fault reports lost), not back ([`FrameError::Stale`]).
 //!
-//! Before any heartbeat a fault report cannot be attributed: [`FrameError::NoHeartbeat`].
+//! Before any heartbeat a fault report cannot be attributed: [`FrameError::NoHeartbeat`]. One
+//! that comes while a heartbeat is overdue, or after the heartbeat timed out (judged against
+//! the lost session), is accepted but stale ([`Reception::stale`]): not current.
 
 use super::codec::{
     check_crc, decode_signals, frame_payload, status_link, FrameError, Identity, MessageKind, Report, StatusLink,
