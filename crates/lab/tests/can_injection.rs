@@ -258,10 +258,14 @@ fn genuine_logs_decode_cleanly() {
             .iter()
             .map(|(t, f)| {
                 let r = d.receive(*t, f);
-                u32::from(r.lost_status) + u32::from(r.lost_fault_reports) + u32::from(r.superseded)
+                u32::from(r.lost_status)
+                    + u32::from(r.lost_fault_reports)
+                    + u32::from(r.superseded)
+                    + u32::from(r.stale)
             })
             .sum();
-        assert_eq!(lost, 0, "{name}: no loss in a genuine log");
+        assert_eq!(lost, 0, "{name}: no loss and no stale report in a genuine log");
+        assert_eq!(d.owed_fault_reports(), 0, "{name}: no report owed at the end");
     }
 }
 
