@@ -713,8 +713,10 @@ impl Decoder {
             }
         }
         if let Some(lt) = latest {
+            // (A latency step the session clock followed since lets the reports come later
+            // than the release's first heartbeat did, by up to that step.)
             let off = start.saturating_sub(diff(lt, 0));
-            if off > slack {
+            if off > slack.saturating_add(s.lag_us) {
                 return Err(FrameError::Untimely { off_ms: -ms(off) });
             }
         }
