@@ -346,11 +346,15 @@ impl Decoder {
                     }
                     // A sender that restarted before its heartbeat timed out (a power cycle
                     // shorter than 3 s): a newer release number and a counter not above the
-                    // time since its last heartbeat. The session it left is kept as the lost
-                    // one: should that sender go on, this one was a replay (superseded).
+                    // time since its last heartbeat; the next release number (one power-up),
+                    // or any newer one once the old sender's heartbeat is overdue (it stopped).
+                    // The session it left is kept as the lost one: should that sender go on,
+                    // this one was a replay (superseded).
                     Err(_)
                         if !(1..COUNTER_MOD / 2).contains(&(link.counter.wrapping_sub(s.counter) % COUNTER_MOD))
-                            && self.restart_plausible(&link, now, Some(&s)) =>
+                            && self.restart_plausible(&link, now, Some(&s))
+                            && (link.identity.release & 0x3F == (s.identity.release + 1) & 0x3F
+                                || now.saturating_sub(s.at_us) > STATUS_PERIOD_US + TOLERANCE_US) =>
                     {
                         self.lost = Some(s);
                         self.open(now, &link, true, rec);

@@ -278,12 +278,31 @@ fn restart_without_silence_is_accepted() {
         })
         .collect();
     let last = head.last().unwrap().0 - t0;
-    for gap_us in [300_000, 1_000_000, 2_000_000, 2_900_000] {
+    let next_release: Vec<(u64, CanFrame)> = head
+        .iter()
+        .map(|(t, f)| {
+            let mut link = status_link(u64::from_le_bytes(f.data().try_into().unwrap()));
+            link.identity.release += 1;
+            let Ok((pbm::can::Report::Status(s), _)) = decode_frame(f, link.identity) else { panic!() };
+            (*t, pbm::can::encode_status(&s, link))
+        })
+        .collect();
+    // The next release number (one power-up): accepted however soon it comes; a release
+    // number further on once the old heartbeat is overdue (the old sender stopped).
+    for (gap_us, frames_after) in
+        [(300_000, &next_release), (1_000_000, &next_release), (1_200_000, &restarted), (2_900_000, &restarted)]
+    {
         let mut frames = head.clone();
-        frames.extend(restarted.iter().map(|(t, f)| (t + last + gap_us, *f)));
+        frames.extend(frames_after.iter().map(|(t, f)| (t + last + gap_us, *f)));
         let (s, _) = display(&frames);
         assert_eq!((s.heartbeat_losses, s.flagged_total(), s.superseded), (0, 0, 0), "restart {gap_us} µs: {s}");
     }
+    // A boot frame of another recording (release further on) slipped in while the sender's
+    // heartbeat is on time: flagged, the genuine heartbeats go on undisturbed.
+    let mut frames = head.clone();
+    frames.insert(5, (head[4].0 + 400_000, restarted[0].1));
+    let (s, _) = display(&frames);
+    assert_eq!((s.flagged_total(), s.superseded, s.lost_status), (1, 0, 0), "{s}");
     // The old frames again 2 s later (not a restart: the same release): every one flagged.
     let mut frames = head.clone();
     frames.extend(head.iter().map(|(t, f)| (t + last + 2_000_000, *f)));
