@@ -122,7 +122,7 @@ pub enum FrameError {
         off_ms: i32,
     },
     /// Sooner after the previous frame of that message than the sender ever sends (status: 1 s;
-    /// fault report: 100 ms, 1 s for an unchanged report): a flood or an inserted frame.
+    /// fault report: 100 ms, 0.75 s for an unchanged one in sequence): a flood or an inserted frame.
     RateExceeded {
         /// Time since the previous accepted frame of that message, ms.
         gap_ms: u32,

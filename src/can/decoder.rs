@@ -5,7 +5,8 @@
 //! Checks, in order: remote frame, identifier, length, CRC (the fault report's against the
 //! session's locomotive and release number, which its CRC covers), signal values, then the
 //! freshness rules below. A frame that fails any check is flagged with a [`FrameError`] and
-//! yields no report; **a flagged frame never changes the decoder's state**, so the genuine
+//! yields no report; **a flagged frame is never accepted and moves nothing** (its phase alone is
+//! kept, as evidence of a latency step the next genuine frame must confirm), so the genuine
 //! frames after a replayed, delayed or inserted one are judged against genuine data only. The
 //! decoder never panics on any input. `can/README.md` explains the choice of scheme, what it
 //! detects and what it cannot.
@@ -18,13 +19,26 @@
 //! - come at least 1 s − [`TOLERANCE_US`] after the last accepted one, else
 //!   [`FrameError::RateExceeded`] (a flood, an inserted or replayed frame);
 //! - carry a newer counter (`d = n − n_last mod 4096` in `1..2048`), else [`FrameError::Stale`];
-//! - have come `d` seconds after the last accepted one, within [`TOLERANCE_US`] plus 200 ppm
-//!   clock drift, else [`FrameError::Untimely`] (delayed, or a replay at the wrong moment);
-//! - not go back in release number, else [`FrameError::WrongRelease`].
+//! - have come `d` seconds after the session clock, within [`TOLERANCE_US`] plus 200 ppm
+//!   clock drift late or half a second early, else [`FrameError::Untimely`] (delayed, or a
+//!   replay at the wrong moment);
+//! - not go back in release number, else [`FrameError::WrongRelease`] (unless it goes back to
+//!   the release before a rise that rests on one heartbeat: that rise was a corruption the CRC
+//!   missed, and is undone).
+//!
+//! The session clock (when the next heartbeat is due) is the earliest receive time the
+//! accepted heartbeats imply; one early heartbeat does not move it, the next one early the
+//! same way does. A late heartbeat is flagged, but its phase is kept: when the next one is
+//! late the same way the latency rose (a latency step) and the clock follows, up to
+//! [`MAX_LATENCY_STEP_US`] after the earliest phase. A sender that restarts before its
+//! heartbeat times out (a newer release number, a counter not above the time since the last
+//! heartbeat) opens a new tentative session at once.
 //!
 //! `d − 1` heartbeats were lost ([`Reception::lost_status`]; a fault report that arrives when a
 //! heartbeat is overdue reports it at once); fault reports the sender counted but this receiver
-//! never accepted are reported as lost too ([`Reception::lost_fault_reports`]).
+//! never accepted are reported as lost too ([`Reception::lost_fault_reports`]), except the last
+//! one counted, which the status frame may have overtaken: owed until another frame comes
+//! ([`Decoder::owed_fault_reports`]).
 //!
 //! When no status frame was accepted for more than [`HEARTBEAT_TIMEOUT_US`] the session is lost
 //! (power cycle, bus-off, a gap between recordings): the held fault report is stale from then
@@ -40,18 +54,22 @@
 //! # Fault reports
 //!
 //! A fault report is attributed to the session's release, or to the next one when its time
-//! since release says the release began after the last heartbeat; its CRC must match that
-//! locomotive and release. Then:
-//! - at least 100 ms after the last accepted fault report, 1 s when its content is unchanged
-//!   (the sender's own bounds), else [`FrameError::RateExceeded`];
+//! since release says the release began after the last heartbeat (or to the release before a
+//! rise that rests on one heartbeat); its CRC must match that locomotive and release. Then:
+//! - at least 100 ms after the last accepted fault report, 0.75 s when its content is unchanged
+//!   and its counter the next (the sender's 1 s less the latency step followed), else
+//!   [`FrameError::RateExceeded`];
 //! - within its release, a larger time since release than the last accepted report, else
 //!   [`FrameError::Stale`], and that time must match the receive time since the release began
-//!   (within [`TOLERANCE_US`] and the field's 50 ms rounding), else [`FrameError::Untimely`];
+//!   (within [`TOLERANCE_US`] and the field's 50 ms rounding), else [`FrameError::Untimely`]
+//!   (two reports late the same way move the release start, as for the heartbeat);
 //! - the first report of a release must place the release command between the last heartbeat
 //!   of the previous release and the first of its own, else [`FrameError::Untimely`];
 //! - its counter may jump ahead (fault reports lost), not back ([`FrameError::Stale`]).
 //!
-//! Before any heartbeat a fault report cannot be attributed: [`FrameError::NoHeartbeat`].
+//! Before any heartbeat a fault report cannot be attributed: [`FrameError::NoHeartbeat`]. One
+//! that comes while a heartbeat is overdue, or after the heartbeat timed out (judged against
+//! the lost session), is accepted but stale ([`Reception::stale`]): not current.
 
 use super::codec::{
     check_crc, decode_signals, frame_payload, status_link, FrameError, Identity, MessageKind, Report, StatusLink,
@@ -77,6 +95,12 @@ const TAU_SATURATED: u16 = 4095;
 const FAULT_EARLY_US: u64 = 500_000;
 /// Heartbeat counter modulus (12 bits).
 const COUNTER_MOD: u16 = 4096;
+/// How far the receiver follows a lasting rise of the bus latency (a latency step, a gateway
+/// that starts queueing): the phase of the heartbeats, or of a release's fault reports, may move
+/// up to this much later than the earliest phase the session has seen, once two consecutive
+/// frames show the new phase (the first of them is flagged: one delayed frame looks the same).
+/// A uniform delay beyond it stays flagged and the session times out.
+pub const MAX_LATENCY_STEP_US: u64 = 250_000;
 
 /// Clock drift allowed between sender and receiver over `dt`: 200 ppm (crystal oscillators
 /// stay within 100 ppm).
@@ -100,6 +124,17 @@ struct FaultTrack {
     counter: u8,
     /// The release start rests on this one report (the release's first accepted).
     single: bool,
+    /// How much later than first estimated the release start was moved by a latency step.
+    lag_us: i64,
+    /// Release start implied by the last report flagged as late (for a latency step).
+    late_start_us: Option<i64>,
+}
+
+impl FaultTrack {
+    /// The first accepted report of a release.
+    const fn first(at_us: u64, release: u8, tau: u16, start_us: i64, key: u64, counter: u8) -> Self {
+        Self { at_us, release, tau, start_us, key, counter, single: true, lag_us: 0, late_start_us: None }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -125,6 +160,19 @@ struct Session {
     tentative: bool,
     /// Heartbeats found overdue (lost) by fault reports since the last accepted status frame.
     overdue_reported: u16,
+    /// How much later than the earliest phase seen the session clock was moved by latency steps.
+    lag_us: i64,
+    /// A newer heartbeat whose phase did not match the session clock (flagged late, or
+    /// accepted early): counter and receive time. The next heartbeat at the same phase confirms
+    /// it and the clock follows (a latency step, or a clock set by a delayed frame).
+    off_phase: Option<(u16, u64)>,
+    /// The release before the last rise of the release number, while that rise rests on one
+    /// heartbeat: (release, its `release_before_us`, its `release_since_us`). A genuine frame
+    /// of that release undoes the rise (it was a corruption that kept the CRC).
+    release_prev: Option<(u8, Option<u64>, u64)>,
+    /// A fault report the last status frame counted (`FaultReportCount`) that has not arrived:
+    /// a status frame may overtake the report of its own tick. Lost if anything else comes first.
+    owed_fault: Option<u8>,
 }
 
 /// What [`Decoder::receive`] made of one frame.
@@ -146,6 +194,11 @@ pub struct Reception {
     /// This status frame continued a session lost to a silence and replaced a tentative
     /// session opened meanwhile: the frames accepted in that tentative session were replays.
     pub superseded: bool,
+    /// A fault report accepted while a heartbeat is overdue (more than a period and the
+    /// tolerance since the last accepted status frame) or lost (judged against the session lost
+    /// to the silence): no heartbeat on time vouches for it, so it is not current and a display
+    /// shows it as stale, until an accepted heartbeat comes.
+    pub stale: bool,
 }
 
 /// Stream decoder of the monitor's frames.
@@ -196,16 +249,25 @@ impl Decoder {
     }
 
     /// Whether a report accepted at `accepted_us` is still current at `now_us`: the session is
-    /// open, its heartbeat not silent for longer than [`HEARTBEAT_TIMEOUT_US`], and no newer
-    /// fault report was counted by the sender since. A display shows anything else as stale.
+    /// open, its heartbeat not silent for longer than [`HEARTBEAT_TIMEOUT_US`], no heartbeat
+    /// was overdue when it came or one came since, and no newer fault report was accepted since. A display shows anything else as stale.
     pub fn is_current(&self, accepted_us: u64, now_us: u64) -> bool {
         match self.session {
             Some(s) => {
                 now_us.saturating_sub(s.at_us) <= HEARTBEAT_TIMEOUT_US
                     && s.fault.is_some_and(|f| f.at_us == accepted_us)
+                    // Not accepted while a heartbeat was overdue (`Reception::stale`).
+                    && accepted_us.saturating_sub(s.at_us) < STATUS_PERIOD_US + TOLERANCE_US
             }
             None => false,
         }
+    }
+
+    /// Fault reports the last status frame counted that have not arrived (0 or 1): a status
+    /// frame may overtake the report of its own tick, so that report is lost only when another
+    /// frame comes first. At the end of a stream (or when the bus goes quiet) they are lost.
+    pub fn owed_fault_reports(&self) -> u8 {
+        self.session.or(self.lost).map_or(0, |s| u8::from(s.owed_fault.is_some()))
     }
 
     /// Decodes one frame received at `now_us` (µs of the receive clock, e.g. a log's time
@@ -220,6 +282,7 @@ impl Decoder {
             lost_fault_reports: 0,
             identity: None,
             superseded: false,
+            stale: false,
         };
         if let Some(s) = self.session {
             let silence = now_us.saturating_sub(s.at_us);
@@ -247,13 +310,13 @@ impl Decoder {
         let link = status_link(bits);
         let loco = link.identity.locomotive;
         let lost_same = self.lost.filter(|p| p.identity.locomotive == loco);
-        let continues_lost = lost_same.is_some_and(|p| continuation(&p, now, &link).is_ok());
+        let continues_lost = lost_same.and_then(|p| continuation(&p, now, &link).ok());
         match self.session {
-            Some(s) if s.tentative && continues_lost => {
+            Some(s) if s.tentative && continues_lost.is_some() => {
                 // The sender never restarted: what opened the tentative session was a replay.
                 rec.superseded = true;
-                if let Some(p) = self.lost.take() {
-                    self.accept_status(p, now, &link, rec);
+                if let (Some(p), Some(c)) = (self.lost.take(), continues_lost) {
+                    self.accept_status(p, now, &link, c, rec);
                 }
             }
             Some(s) => {
@@ -261,7 +324,7 @@ impl Decoder {
                     return Err(FrameError::ForeignSender { locomotive: loco });
                 }
                 match continuation(&s, now, &link) {
-                    Ok(()) => self.accept_status(s, now, &link, rec),
+                    Ok(c) => self.accept_status(s, now, &link, c, rec),
                     // A tentative session rests on one frame, which may itself have been early
                     // or late (or a replay): a newer heartbeat a period or more later that does
                     // not fit its clock replaces it.
@@ -281,7 +344,31 @@ impl Decoder {
                             o.last_fault_counter = s.last_fault_counter;
                         }
                     }
-                    Err(e) => return Err(e),
+                    // A sender that restarted before its heartbeat timed out (a power cycle
+                    // shorter than 3 s): a newer release number and a counter not above the
+                    // time since its last heartbeat; the next release number (one power-up),
+                    // or any newer one once the old sender's heartbeat is overdue (it stopped).
+                    // The session it left is kept as the lost one: should that sender go on,
+                    // this one was a replay (superseded).
+                    Err(_)
+                        if !(1..COUNTER_MOD / 2).contains(&(link.counter.wrapping_sub(s.counter) % COUNTER_MOD))
+                            && self.restart_plausible(&link, now, Some(&s))
+                            && (link.identity.release & 0x3F == (s.identity.release + 1) & 0x3F
+                                || now.saturating_sub(s.at_us) > STATUS_PERIOD_US + TOLERANCE_US) =>
+                    {
+                        self.lost = Some(s);
+                        self.open(now, &link, true, rec);
+                    }
+                    Err(e) => {
+                        // A newer heartbeat late for the session clock: remember its phase (a
+                        // latency step shows the same phase again in the next one).
+                        if let (FrameError::Untimely { off_ms }, Some(o)) = (e, self.session.as_mut()) {
+                            if off_ms > 0 {
+                                o.off_phase = Some((link.counter, now));
+                            }
+                        }
+                        return Err(e);
+                    }
                 }
             }
             None => {
@@ -289,9 +376,9 @@ impl Decoder {
                 // plausible. The same sender still running continues its session; a sender
                 // that restarted comes with a newer release number (a power-up counts as one,
                 // see `CanReporter::set_identity`) and a counter not above the silence.
-                if continues_lost {
+                if let Some(c) = continues_lost {
                     if let Some(p) = self.lost.take() {
-                        self.accept_status(p, now, &link, rec);
+                        self.accept_status(p, now, &link, c, rec);
                     }
                 } else if self.seen & (1 << loco) != 0 {
                     let newest = self.newest_release[usize::from(loco)];
@@ -305,11 +392,9 @@ impl Decoder {
                     if !release_not_before(release, newest) {
                         return Err(FrameError::WrongRelease { expected: newest, got: release });
                     }
-                    if let Some(p) = lost_same {
-                        let silence = now.saturating_sub(p.at_us);
-                        if u64::from(link.counter) * STATUS_PERIOD_US > silence.saturating_add(TOLERANCE_US) {
-                            return Err(FrameError::Stale { last: p.counter, got: link.counter });
-                        }
+                    if !self.restart_plausible(&link, now, lost_same.as_ref()) {
+                        let last = lost_same.map_or(0, |p| p.counter);
+                        return Err(FrameError::Stale { last, got: link.counter });
                     }
                     self.open(now, &link, true, rec);
                 } else {
@@ -319,6 +404,22 @@ impl Decoder {
             }
         }
         Ok(report)
+    }
+
+    /// Is this status frame a plausible restart of its locomotive's sender: a newer release
+    /// number than any seen from it (a power-up counts as a release) and, when `before` is its
+    /// last session, a counter not above the seconds since that session's last heartbeat?
+    fn restart_plausible(&self, link: &StatusLink, now: u64, before: Option<&Session>) -> bool {
+        let i = usize::from(link.identity.locomotive & 0x3F);
+        let release = link.identity.release & 0x3F;
+        let newest = self.newest_release[i];
+        if self.seen & (1 << i) != 0 && (release == newest || !release_not_before(release, newest)) {
+            return false;
+        }
+        before.is_none_or(|p| {
+            let silence = now.saturating_sub(p.at_us);
+            u64::from(link.counter) * STATUS_PERIOD_US <= silence.saturating_add(TOLERANCE_US)
+        })
     }
 
     fn open(&mut self, now: u64, link: &StatusLink, tentative: bool, rec: &mut Reception) {
@@ -335,37 +436,90 @@ impl Decoder {
             fault: None,
             tentative,
             overdue_reported: 0,
+            lag_us: 0,
+            off_phase: None,
+            release_prev: None,
+            owed_fault: None,
         });
         self.remember(link);
         rec.identity = Some(identity);
     }
 
-    /// Accepts a status frame that continues session `s`.
-    fn accept_status(&mut self, mut s: Session, now: u64, link: &StatusLink, rec: &mut Reception) {
+    /// Accepts a status frame that continues session `s` (`c`: how, from [`continuation`]).
+    fn accept_status(&mut self, mut s: Session, now: u64, link: &StatusLink, c: Continues, rec: &mut Reception) {
         let d = link.counter.wrapping_sub(s.counter) % COUNTER_MOD;
         rec.lost_status = d.saturating_sub(1).saturating_sub(s.overdue_reported);
         s.overdue_reported = 0;
         let release = link.identity.release & 0x3F;
-        if release != s.identity.release {
+        if c.undo_release {
+            // The rise of the release number rested on one heartbeat, and the sender goes on
+            // with the release before it: that heartbeat was a corruption the CRC missed.
+            if let Some((r, before, since)) = s.release_prev.take() {
+                s.identity.release = r;
+                s.release_before_us = before;
+                s.release_since_us = since;
+            }
+        } else if release != s.identity.release {
+            s.release_prev = Some((s.identity.release, s.release_before_us, s.release_since_us));
             s.release_before_us = Some(s.at_us);
             s.release_since_us = now;
             s.identity.release = release;
+        } else {
+            s.release_prev = None;
         }
-        // Fault reports the sender counted that never arrived here (a count behind ours: a
-        // fault report overtook this frame, nothing lost).
+        // Fault reports the sender counted that never arrived here. The last one counted may
+        // be the report of this frame's own tick, overtaken by it: owed, lost only if anything
+        // else comes first. A report owed since the previous status frame is lost. (A count
+        // behind ours: a fault report overtook this frame, nothing lost.)
+        let mut lost = u8::from(s.owed_fault.take().is_some());
         let behind = link.fault_count.wrapping_sub(s.next_fault) & 0xF;
         if behind < 8 {
-            rec.lost_fault_reports = behind;
+            if behind > 0 {
+                lost += behind - 1;
+                s.owed_fault = Some(link.fault_count.wrapping_sub(1) & 0xF);
+            }
             s.next_fault = link.fault_count & 0xF;
         }
+        rec.lost_fault_reports = lost;
+        // The session clock: when a frame with this counter was due.
         let due = s.anchor_us.saturating_add(i64::from(d) * STATUS_PERIOD_US as i64);
         let creep = drift(u64::from(d) * STATUS_PERIOD_US) as i64;
-        s.anchor_us = diff(now, 0).min(due.saturating_add(creep));
+        let here = diff(now, 0);
+        let anchor = match c.phase {
+            // Within the tolerance: the earliest receive time the frames imply.
+            Phase::OnTime => {
+                s.off_phase = None;
+                here.min(due.saturating_add(creep))
+            }
+            // Early, and the heartbeat before was early the same way: the clock was set by a
+            // delayed frame (or the latency fell); it follows.
+            Phase::Early { confirmed: true } => {
+                s.off_phase = None;
+                here
+            }
+            // One early heartbeat does not move the clock (it may be an outlier or a replay
+            // ahead of the genuine frame); the next one tells.
+            Phase::Early { confirmed: false } => {
+                s.off_phase = Some((link.counter, now));
+                due.saturating_add(creep)
+            }
+            // Late, at the phase of the heartbeat before (flagged): a latency step.
+            Phase::Step => {
+                s.off_phase = None;
+                here
+            }
+        };
+        let moved = anchor.saturating_sub(due);
+        s.lag_us = s.lag_us.saturating_add(moved).max(0);
+        s.anchor_us = anchor;
         s.counter = link.counter;
         s.at_us = now;
         s.tentative = false;
         self.session = Some(s);
         self.remember(link);
+        if c.undo_release {
+            self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
+        }
         rec.identity = Some(s.identity);
     }
 
@@ -380,25 +534,43 @@ impl Decoder {
 
     fn fault(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
         // After a silence the report is judged against the session lost to it (the sender may
-        // well be alive: a fresh report of its release shows it); it does not reopen the
-        // session, only a heartbeat does.
+        // well be alive: a fresh report of its release shows it), but it is not current: no
+        // live heartbeat vouches for it ([`Reception::stale`]). It does not reopen the session,
+        // only a heartbeat does.
         let in_lost = self.session.is_none();
         let Some(mut s) = self.session.or(self.lost) else { return Err(FrameError::NoHeartbeat) };
         let tau = l::TIME_SINCE_RELEASE.get(bits) as u16;
         let tau_us = u64::from(tau) * TAU_STEP_US;
-        // Its release: the session's, or the next one if it began after the last heartbeat.
+        // Its release: the session's, or the next one if it began after the last heartbeat,
+        // or the one before a rise of the release number that rests on one heartbeat.
         let this = s.identity;
         let next = Identity { release: (this.release + 1) & 0x3F, ..this };
         let may_be_next = tau_us <= now.saturating_sub(s.at_us).saturating_add(TOLERANCE_US + TAU_ROUNDING_US);
+        let prev = s.release_prev.map(|(r, ..)| Identity { release: r, ..this });
         let identity = match check_crc(MessageKind::Fault, bits, this) {
             Ok(()) => this,
-            Err(e) if !may_be_next => return Err(e),
             Err(e) => {
-                check_crc(MessageKind::Fault, bits, next).map_err(|_| e)?;
-                next
+                if may_be_next && check_crc(MessageKind::Fault, bits, next).is_ok() {
+                    next
+                } else if let Some(p) = prev.filter(|p| check_crc(MessageKind::Fault, bits, *p).is_ok()) {
+                    p
+                } else {
+                    return Err(e);
+                }
             }
         };
         let report = decode_signals(MessageKind::Fault, bits)?;
+        let undo_release = Some(identity) == prev && identity != this && identity != next;
+        if undo_release {
+            // A genuine report of the release before the rise: the rise was a corruption the
+            // CRC missed. The report is judged against the release it belongs to (kept only
+            // if it is accepted).
+            if let Some((r, before, since)) = s.release_prev.take() {
+                s.identity.release = r;
+                s.release_before_us = before;
+                s.release_since_us = since;
+            }
+        }
         let counter = l::FAULT_COUNTER.get(bits) as u8;
         let key = bits & !(l::FAULT_CRC.mask() | l::FAULT_COUNTER.mask() | l::TIME_SINCE_RELEASE.mask());
         let slack = (TOLERANCE_US + TAU_ROUNDING_US) as i64;
@@ -406,8 +578,13 @@ impl Decoder {
         let track = match s.fault {
             Some(f) => {
                 let gap = diff(now, f.at_us);
-                let min_gap =
-                    if f.release == identity.release && f.key == key { FAULT_REPEAT_US } else { FAULT_MIN_GAP_US };
+                // The 1 s bound holds between two unchanged reports sent one after the other (or
+                // a copy); a report lost between them (counter skipped) may have been a change.
+                let repeat =
+                    f.release == identity.release && f.key == key && counter.wrapping_sub(f.counter) & 0xF <= 1;
+                // (Less the latency steps the receiver follows: a latency that fell between two
+                // repeats brings them closer.)
+                let min_gap = if repeat { FAULT_REPEAT_US - MAX_LATENCY_STEP_US } else { FAULT_MIN_GAP_US };
                 if gap < (min_gap - TOLERANCE_US) as i64 {
                     return Err(FrameError::RateExceeded { gap_ms: ms(gap.max(0)) as u32 });
                 }
@@ -420,47 +597,54 @@ impl Decoder {
                             let mut g = f;
                             g.start_us = g.start_us.saturating_add(i64::from(f.tau - tau) * TAU_STEP_US as i64);
                             g.single = false;
-                            s.fault = Some(g);
-                            self.store(s, in_lost);
+                            self.set_fault(g, in_lost);
                         }
                         return Err(FrameError::Stale { last: f.tau, got: tau });
                     }
                     // Late: more than the tolerance and the field's rounding after its time
-                    // since release says. Early (up to half a second): the release start was
-                    // set by a delayed report (it is not moved: an early report may as well be
-                    // the first of a reordered pair).
+                    // since release says, unless the report before was late the same way (a
+                    // latency step, followed up to MAX_LATENCY_STEP_US). Early (up to half a
+                    // second): the release start was set by a delayed report (it is not moved:
+                    // an early report may as well be the first of a reordered pair).
                     let since = diff(now, 0).saturating_sub(f.start_us);
                     let off = since.saturating_sub(tau_us as i64);
                     let limit = slack + drift(since.unsigned_abs()) as i64;
                     let saturated = tau == TAU_SATURATED;
-                    if (off > limit && !saturated) || off < -(FAULT_EARLY_US as i64) {
+                    let mut start_us = f.start_us;
+                    let mut lag_us = f.lag_us;
+                    if off > limit && !saturated {
+                        let step = f.late_start_us.is_some_and(|ls| start.saturating_sub(ls).abs() <= slack)
+                            && f.lag_us.saturating_add(off) <= MAX_LATENCY_STEP_US as i64;
+                        if !step {
+                            let mut g = f;
+                            g.late_start_us = Some(start);
+                            self.set_fault(g, in_lost);
+                            return Err(FrameError::Untimely { off_ms: ms(off) });
+                        }
+                        start_us = start;
+                        lag_us = lag_us.saturating_add(off);
+                    } else if off < -(FAULT_EARLY_US as i64) {
                         return Err(FrameError::Untimely { off_ms: ms(off) });
                     }
                     FaultTrack {
                         at_us: now,
                         release: f.release,
                         tau,
-                        start_us: f.start_us,
+                        start_us,
                         key,
                         counter,
                         single: false,
+                        lag_us,
+                        late_start_us: None,
                     }
                 } else {
                     self.first_of_release(&s, identity, start, slack)?;
-                    FaultTrack {
-                        at_us: now,
-                        release: identity.release,
-                        tau,
-                        start_us: start,
-                        key,
-                        counter,
-                        single: true,
-                    }
+                    FaultTrack::first(now, identity.release, tau, start, key, counter)
                 }
             }
             None => {
                 self.first_of_release(&s, identity, start, slack)?;
-                FaultTrack { at_us: now, release: identity.release, tau, start_us: start, key, counter, single: true }
+                FaultTrack::first(now, identity.release, tau, start, key, counter)
             }
         };
         // Its counter must be newer than the last accepted report's, and reports the sender
@@ -473,11 +657,14 @@ impl Decoder {
                 return Err(FrameError::Stale { last: u16::from(last), got: u16::from(counter) });
             }
         }
+        // A report the last status frame counted and this is not: lost.
+        let mut lost = s.owed_fault.take().map_or(0, |o| u8::from(o != counter));
         let d = counter.wrapping_sub(s.next_fault) & 0xF;
         if d < 8 {
-            // (A report the status frame overtook was counted lost already.)
-            rec.lost_fault_reports = d;
+            // (A report the status frame overtook is the owed one: d = 15.)
+            lost += d;
         }
+        rec.lost_fault_reports = lost;
         s.next_fault = (counter + 1) & 0xF;
         s.last_fault_counter = Some(counter);
         // Heartbeats overdue at this moment were lost (a deleted status frame is noticed even
@@ -488,17 +675,29 @@ impl Decoder {
             rec.lost_status = overdue - s.overdue_reported;
             s.overdue_reported = overdue;
         }
+        // No heartbeat on time vouches for it: accepted (it may be genuine: a status frame was
+        // lost), but not current (a delayed stream, whose heartbeats are flagged, shows here).
+        rec.stale = overdue > 0;
+        if undo_release {
+            self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
+        }
         s.fault = Some(track);
-        self.store(s, in_lost);
+        if in_lost {
+            self.lost = Some(s);
+            rec.stale = true;
+        } else {
+            self.session = Some(s);
+        }
         rec.identity = Some(identity);
         Ok(report)
     }
 
-    fn store(&mut self, s: Session, in_lost: bool) {
-        if in_lost {
-            self.lost = Some(s);
-        } else {
-            self.session = Some(s);
+    /// Updates the fault track of the session a flagged report was judged against (the
+    /// reordered-pair and latency-step evidence), nothing else.
+    fn set_fault(&mut self, f: FaultTrack, in_lost: bool) {
+        let s = if in_lost { self.lost.as_mut() } else { self.session.as_mut() };
+        if let Some(s) = s {
+            s.fault = Some(f);
         }
     }
 
@@ -518,8 +717,10 @@ impl Decoder {
             }
         }
         if let Some(lt) = latest {
+            // (A latency step the session clock followed since lets the reports come later
+            // than the release's first heartbeat did, by up to that step.)
             let off = start.saturating_sub(diff(lt, 0));
-            if off > slack {
+            if off > slack.saturating_add(s.lag_us) {
                 return Err(FrameError::Untimely { off_ms: -ms(off) });
             }
         }
@@ -527,9 +728,41 @@ impl Decoder {
     }
 }
 
+/// How a heartbeat fits the session clock.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    /// Within the tolerance.
+    OnTime,
+    /// Early by more than the tolerance, less than half a period; `confirmed` when the last
+    /// off-phase heartbeat showed the same phase.
+    Early { confirmed: bool },
+    /// Late, at the phase the last (flagged) off-phase heartbeat showed, within
+    /// [`MAX_LATENCY_STEP_US`] of the earliest phase: a latency step.
+    Step,
+}
+
+/// How a status frame continues a session.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Continues {
+    phase: Phase,
+    /// It goes back to the release before a rise that rested on one heartbeat.
+    undo_release: bool,
+}
+
+/// Was the last off-phase heartbeat of `s` at the phase of this one (`d` periods apart, within
+/// the tolerance)?
+fn same_phase(s: &Session, now: u64, link: &StatusLink) -> bool {
+    s.off_phase.is_some_and(|(c, at)| {
+        let dp = link.counter.wrapping_sub(c) % COUNTER_MOD;
+        let span = u64::from(dp) * STATUS_PERIOD_US;
+        (1..COUNTER_MOD / 2).contains(&dp)
+            && diff(now, at).saturating_sub(span as i64).unsigned_abs() <= TOLERANCE_US + drift(span)
+    })
+}
+
 /// Does this status frame continue session `s`: later than the rate allows, newer counter, as
 /// many seconds later as the counter advanced, release not going back?
-fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<(), FrameError> {
+fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<Continues, FrameError> {
     let gap = diff(now, s.at_us);
     let d = link.counter.wrapping_sub(s.counter) % COUNTER_MOD;
     if d == 0 || d >= COUNTER_MOD / 2 {
@@ -539,18 +772,36 @@ fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<(), FrameErr
         }
         return Err(FrameError::Stale { last: s.counter, got: link.counter });
     }
-    // Late: more than the tolerance (and clock drift) after it was due. Early: up to half a
-    // period is a session clock set by a delayed frame (it moves); more is no genuine frame.
+    // Late: more than the tolerance (and clock drift) after it was due, unless the heartbeat
+    // before showed the same lasting step. Early: up to half a period is a session clock set by
+    // a delayed frame, or a latency that fell; more is no genuine frame.
     let span = u64::from(d) * STATUS_PERIOD_US;
     let off = diff(now, 0).saturating_sub(s.anchor_us.saturating_add(span as i64));
-    if off > (TOLERANCE_US + drift(span)) as i64 || off < -((STATUS_PERIOD_US / 2) as i64) {
-        if gap < (STATUS_PERIOD_US - TOLERANCE_US) as i64 && off < 0 {
+    let tol = (TOLERANCE_US + drift(span)) as i64;
+    let phase = if off > tol {
+        if same_phase(s, now, link) && s.lag_us.saturating_add(off) <= MAX_LATENCY_STEP_US as i64 {
+            Phase::Step
+        } else {
+            return Err(FrameError::Untimely { off_ms: ms(off) });
+        }
+    } else if off < -((STATUS_PERIOD_US / 2) as i64) {
+        if gap < (STATUS_PERIOD_US - TOLERANCE_US) as i64 {
             return Err(FrameError::RateExceeded { gap_ms: ms(gap.max(0)) as u32 });
         }
         return Err(FrameError::Untimely { off_ms: ms(off) });
+    } else if off < -tol {
+        Phase::Early { confirmed: same_phase(s, now, link) }
+    } else {
+        Phase::OnTime
+    };
+    let release = link.identity.release & 0x3F;
+    let mut undo_release = false;
+    if !release_not_before(release, s.identity.release) {
+        if s.release_prev.is_some_and(|(r, ..)| r == release) {
+            undo_release = true;
+        } else {
+            return Err(FrameError::WrongRelease { expected: s.identity.release, got: link.identity.release });
+        }
     }
-    if !release_not_before(link.identity.release, s.identity.release) {
-        return Err(FrameError::WrongRelease { expected: s.identity.release, got: link.identity.release });
-    }
-    Ok(())
+    Ok(Continues { phase, undo_release })
 }

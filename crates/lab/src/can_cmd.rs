@@ -125,6 +125,9 @@ pub struct DecodeSummary {
     /// Frames accepted in a tentative session that a continuing heartbeat then showed to be
     /// replays (counted once per superseded session).
     pub superseded: u64,
+    /// Fault reports that arrived while a heartbeat was overdue or lost: shown as stale, never
+    /// as current ([`pbm::can::Reception::stale`]).
+    pub stale_reports: u64,
 }
 
 impl DecodeSummary {
@@ -158,6 +161,9 @@ impl std::fmt::Display for DecodeSummary {
         }
         if self.superseded > 0 {
             write!(f, "; {} replayed sessions superseded", self.superseded)?;
+        }
+        if self.stale_reports > 0 {
+            write!(f, "; {} fault reports with the heartbeat overdue (shown stale)", self.stale_reports)?;
         }
         if self.heartbeat_losses > 0 {
             write!(f, "; heartbeat lost {} times", self.heartbeat_losses)?;
@@ -361,6 +367,7 @@ impl<W: Write> CabDisplay<W> {
             lost_fault_reports: 0,
             identity: Some(self.codec_identity),
             superseded: false,
+            stale: false,
         }
     }
 
@@ -424,6 +431,12 @@ impl<W: Write> CabDisplay<W> {
         let id = reception.identity;
         let result = reception.result;
         match (&result, self.format) {
+            (Ok(Report::Fault(r)), DecodeFormat::Text) if reception.stale => {
+                // No live heartbeat vouches for it: shown, never as the current report.
+                self.summary.fault_reports += 1;
+                self.summary.stale_reports += 1;
+                writeln!(self.out, "{}  [stale: heartbeat overdue]", fault_line(t, id, r))?;
+            }
             (Ok(Report::Fault(r)), DecodeFormat::Text) => {
                 self.summary.fault_reports += 1;
                 self.held = Some((time_us, id));
@@ -471,6 +484,18 @@ impl<W: Write> CabDisplay<W> {
 
     /// Ends the display and returns its counts.
     pub fn finish(mut self) -> std::io::Result<DecodeSummary> {
+        // A fault report the last status frame counted that never came (it may have been
+        // overtaken by that frame, so it was owed, not yet lost).
+        let owed = self.decoder.owed_fault_reports();
+        if owed > 0 && !self.codec_only {
+            self.summary.lost_fault_reports += u64::from(owed);
+            if self.format == DecodeFormat::Text {
+                writeln!(
+                    self.out,
+                    "           !! lost at the end: {owed} fault reports the last status frame counted"
+                )?;
+            }
+        }
         self.out.flush()?;
         Ok(self.summary)
     }
