@@ -624,6 +624,22 @@ mod tests {
         assert_eq!(active.next(), None);
     }
 
+    /// Each mechanism has its cargo feature (named as the mechanism), `extensions` turns on
+    /// all of them, and build.rs knows the same list (for the `mechanism_image` cfg).
+    #[test]
+    fn every_mechanism_has_its_feature() {
+        extern crate std;
+        use std::format;
+        let manifest = include_str!("../Cargo.toml");
+        let build = include_str!("../build.rs");
+        let extensions = manifest.split("extensions = [").nth(1).and_then(|r| r.split(']').next()).unwrap_or("");
+        for m in Mechanism::ALL {
+            assert!(manifest.contains(&format!("\n{} = []", m.name())), "{m}: no feature");
+            assert!(extensions.contains(&format!("\"{}\"", m.name())), "{m}: not in extensions");
+            assert!(build.contains(&format!("\"{}\",", m.name())), "{m}: not in build.rs");
+        }
+    }
+
     #[test]
     fn reciprocal_search_is_off_at_zero() {
         let s = Mechanism::HeatTransfer.descriptor().brake;

@@ -37,7 +37,9 @@
 //!
 //! The optional mechanisms of [`Extensions`] (transport delay, valve lag, heat transfer,
 //! transducer lag/offset/gain, regulator droop, progressive spring, laminar leak, supply gas
-//! temperature) are integer terms too. With [`Extensions::NONE`] [`Twin::update`] takes the base
+//! temperature) are integer terms too, each compiled in by the cargo feature of its name
+//! (`extensions`: all; [`Mechanism::compiled`]): a firmware image carries only the one an audit
+//! named, and a term compiled out is exactly zero. With [`Extensions::NONE`] [`Twin::update`] takes the base
 //! path above unchanged (same bits, one predictable branch). With any mechanism on it takes
 //! [`SUBSTEPS`] pressure substeps per sample (the piston part is still skipped while held), and
 //! [`TwinSample::pressure`] is what the *transducer* reads (lag, then `offset + gain · p`), so
@@ -1240,13 +1242,18 @@ mod tests {
         assert_eq!(Twin::new(&TwinParams::nominal()), Ok(Twin::nominal()));
     }
 
-    /// Only in builds without the `extensions` feature: `cargo test --lib --no-default-features`.
-    #[cfg(not(feature = "extensions"))]
+    /// A mechanism whose feature is off is rejected, one whose feature is on accepted: every
+    /// feature set (`cargo test --lib --no-default-features [--features NAME]`).
     #[test]
-    fn without_the_extensions_feature_extended_parameters_are_rejected() {
-        let mut p = TwinParams::nominal();
-        p.ext[SensorOffset] = 0.1;
-        assert_eq!(Twin::new(&p).err(), Some(ParamError::Unsupported(SensorOffset)));
+    fn mechanisms_without_their_feature_are_rejected() {
+        for m in crate::mechanism::Mechanism::ALL {
+            let mut p = TwinParams::nominal();
+            p.ext[m] = m.descriptor().brake.plausible[0].0;
+            match Twin::new(&p) {
+                Ok(_) => assert!(m.compiled(), "{m:?}"),
+                Err(e) => assert!(!m.compiled() && e == ParamError::Unsupported(m), "{m:?}: {e:?}"),
+            }
+        }
         assert_eq!(Twin::new(&TwinParams::nominal()), Ok(Twin::nominal()));
     }
 
