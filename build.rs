@@ -33,7 +33,28 @@ fn flow_norm(r: f64) -> f64 {
     }
 }
 
+/// The mechanisms' cargo features (`pbm::mechanism` names; Cargo.toml).
+const MECHANISM_FEATURES: [&str; 10] = [
+    "transport_delay",
+    "valve_lag",
+    "heat_transfer",
+    "sensor_lag",
+    "sensor_offset",
+    "sensor_gain",
+    "regulator_droop",
+    "progressive_spring",
+    "laminar_leak",
+    "gas_temperature",
+];
+
 fn main() {
+    // `mechanism_image`: some mechanism's feature on without `extensions` (a firmware image of
+    // the mechanism an audit named), where the twin trades a little speed for flash.
+    println!("cargo::rustc-check-cfg=cfg(mechanism_image)");
+    let feature = |f: &str| std::env::var_os(format!("CARGO_FEATURE_{}", f.to_uppercase())).is_some();
+    if !feature("extensions") && MECHANISM_FEATURES.iter().any(|f| feature(f)) {
+        println!("cargo:rustc-cfg=mechanism_image");
+    }
     let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
     let mut s = String::new();
 

@@ -88,12 +88,55 @@ fn read_adc_trace(path: &Path) -> Result<Vec<u16>, String> {
     Ok(samples)
 }
 
-/// `PBM_FW_MECHANISM` (feature `extensions`): `NAME=VALUE[,NAME=VALUE…]`, each name a
-/// `pbm::mechanism` and each value in the brake twin's valid range; written to
-/// `$OUT_DIR/mechanisms.rs` as the list the monitor's twin is built with.
-fn mechanisms(out: &Path) {
-    println!("cargo:rerun-if-env-changed=PBM_FW_MECHANISM");
-    let spec = std::env::var("PBM_FW_MECHANISM").unwrap_or_else(|_| "heat_transfer=20".to_owned());
+/// The twin check's schedule: a 60 s release, then 30 s venting (reverse flow through the valve).
+const TWIN_CHECK_OPEN: u32 = 6000;
+const TWIN_CHECK_CLOSED: u32 = 3000;
+
+/// FNV-1a over every sample's pressure and travel on the check schedule (the same function is
+/// in the bench binary, which runs the image's twin).
+fn twin_hash(mut update: impl FnMut(bool) -> pbm::twin::TwinSample) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for i in 0..TWIN_CHECK_OPEN + TWIN_CHECK_CLOSED {
+        let s = update(i < TWIN_CHECK_OPEN);
+        for b in s.pressure.0.to_le_bytes().into_iter().chain(s.travel.0.to_le_bytes()) {
+            h = (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    h
+}
+
+/// The mechanisms whose code the core is built with: all with feature `extensions`, else those
+/// whose feature (the mechanism's name, forwarded to the core) is on.
+fn compiled_mechanisms() -> Vec<pbm::mechanism::Mechanism> {
+    let all = std::env::var_os("CARGO_FEATURE_EXTENSIONS").is_some();
+    pbm::mechanism::Mechanism::ALL
+        .into_iter()
+        .filter(|m| all || std::env::var_os(format!("CARGO_FEATURE_{}", m.name().to_uppercase())).is_some())
+        .collect()
+}
+
+/// `PBM_FW_MECHANISM` (a mechanism's feature, or `extensions`): `NAME=VALUE[,NAME=VALUE…]`,
+/// each name a `pbm::mechanism` whose feature is on and each value in the brake twin's valid
+/// range; written to `$OUT_DIR/mechanisms.rs` as the list the monitor's twin is built with.
+/// Unset: `heat_transfer=20` with `extensions`; with one mechanism's feature, that mechanism at
+/// the middle of its first plausible interval. Every failure stops the build with a message.
+fn mechanisms(out: &Path, compiled: &[pbm::mechanism::Mechanism]) {
+    let fail = |msg: String| -> ! {
+        eprintln!("{msg}");
+        std::process::exit(1);
+    };
+    let spec = match std::env::var("PBM_FW_MECHANISM") {
+        Ok(spec) => spec,
+        Err(_) if std::env::var_os("CARGO_FEATURE_EXTENSIONS").is_some() => "heat_transfer=20".to_owned(),
+        Err(_) => match compiled {
+            [m] => {
+                let d = m.descriptor();
+                let (lo, hi) = d.brake.plausible.first().copied().unwrap_or((d.off, d.off));
+                format!("{}={}", d.name, 0.5 * (lo + hi))
+            }
+            _ => fail("PBM_FW_MECHANISM is unset: name the mechanisms (NAME=VALUE[,…])".to_owned()),
+        },
+    };
     let mut ext = pbm::mechanism::Extensions::NONE;
     let mut items = String::new();
     for item in spec.split(',').map(str::trim).filter(|i| !i.is_empty()) {
@@ -101,9 +144,12 @@ fn mechanisms(out: &Path) {
             Some((pbm::mechanism::Mechanism::from_name(name.trim())?, value.trim().parse::<f64>().ok()?))
         });
         let Some((m, v)) = parsed else {
-            eprintln!("PBM_FW_MECHANISM: `{item}` is not NAME=VALUE with a mechanism of pbm::mechanism");
-            std::process::exit(1);
+            fail(format!("PBM_FW_MECHANISM: `{item}` is not NAME=VALUE with a mechanism of pbm::mechanism"));
         };
+        if !compiled.contains(&m) {
+            // The image would carry coefficients for terms it does not compute.
+            fail(format!("PBM_FW_MECHANISM names {m}: build with `--features {m}` (or `extensions`)"));
+        }
         ext = ext.with(m, v);
         write!(items, "(pbm::mechanism::Mechanism::{m:?}, {v:?}), ").unwrap();
     }
@@ -113,16 +159,26 @@ fn mechanisms(out: &Path) {
     // (`TwinCoeffs::from_raw`) and no f64 set-up code (≈ 24 KiB of soft-float and libm).
     let raw = match pbm::twin::TwinCoeffs::new(&params) {
         Ok(c) => c.to_raw(),
-        Err(e) => {
-            eprintln!("PBM_FW_MECHANISM={spec}: the twin rejects it: {e}");
-            std::process::exit(1);
-        }
+        Err(e) => fail(format!("PBM_FW_MECHANISM={spec}: the twin rejects it: {e}")),
+    };
+    // The host's extended twin (every mechanism compiled in) over the check schedule: the image's
+    // own twin must give the same bits (the bench binary compares).
+    let hash = match pbm::Twin::new(&params) {
+        Ok(mut twin) => twin_hash(|open| twin.update(open)),
+        Err(e) => fail(format!("PBM_FW_MECHANISM={spec}: the twin rejects it: {e}")),
     };
     let text = format!(
         "/// The twin's mechanisms and magnitudes (`PBM_FW_MECHANISM={spec}`).\n\
          pub const MECHANISMS: &[(pbm::mechanism::Mechanism, f64)] = &[{items}];\n\
          /// Their twin's coefficients, derived by build.rs (`pbm::twin::TwinCoeffs::to_raw`).\n\
-         pub const TWIN_RAW: [i64; pbm::twin::RAW_COEFFS] = {raw:?};\n"
+         pub const TWIN_RAW: [i64; pbm::twin::RAW_COEFFS] = {raw:?};\n\
+         /// FNV-1a hash of the host twin's samples over `TWIN_CHECK_OPEN` samples with the valve\n\
+         /// open, then `TWIN_CHECK_CLOSED` closed (pressure, then travel, little-endian).\n\
+         pub const TWIN_HASH: u64 = {hash};\n\
+         /// Samples of the check schedule.\n\
+         pub const TWIN_CHECK_OPEN: u32 = {TWIN_CHECK_OPEN};\n\
+         /// Samples of the check schedule.\n\
+         pub const TWIN_CHECK_CLOSED: u32 = {TWIN_CHECK_CLOSED};\n"
     );
     std::fs::write(out.join("mechanisms.rs"), text).expect("write mechanisms.rs");
 }
@@ -141,8 +197,17 @@ fn trace_locomotive(path: &Path) -> u8 {
 fn main() {
     println!("cargo:rerun-if-changed=build.rs");
     let out = PathBuf::from(std::env::var("OUT_DIR").expect("cargo sets OUT_DIR"));
-    if std::env::var_os("CARGO_FEATURE_EXTENSIONS").is_some() {
-        mechanisms(&out);
+    println!("cargo:rerun-if-env-changed=PBM_FW_MECHANISM");
+    // `pbm_mechanisms`: the image runs an extended twin (app.rs).
+    println!("cargo::rustc-check-cfg=cfg(pbm_mechanisms)");
+    let compiled = compiled_mechanisms();
+    if !compiled.is_empty() {
+        println!("cargo:rustc-cfg=pbm_mechanisms");
+        mechanisms(&out, &compiled);
+    } else if let Ok(spec) = std::env::var("PBM_FW_MECHANISM") {
+        // A nominal image would silently ignore the mechanisms asked for.
+        eprintln!("PBM_FW_MECHANISM={spec} needs the mechanism's feature (`--features NAME`)");
+        std::process::exit(1);
     }
     if std::env::var_os("CARGO_FEATURE_QEMU").is_none() {
         return;

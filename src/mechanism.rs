@@ -411,6 +411,37 @@ impl Mechanism {
         self.descriptor().off
     }
 
+    /// True when the twin's code for this mechanism is compiled in (the core's cargo feature of
+    /// the mechanism's name; `extensions` turns all ten on, as the host tools build). A firmware
+    /// image compiles in only the mechanism an audit named, and the twin's extended path then
+    /// carries only that mechanism's terms.
+    pub const fn compiled(self) -> bool {
+        match self {
+            Self::TransportDelay => cfg!(feature = "transport_delay"),
+            Self::ValveLag => cfg!(feature = "valve_lag"),
+            Self::HeatTransfer => cfg!(feature = "heat_transfer"),
+            Self::SensorLag => cfg!(feature = "sensor_lag"),
+            Self::SensorOffset => cfg!(feature = "sensor_offset"),
+            Self::SensorGain => cfg!(feature = "sensor_gain"),
+            Self::RegulatorDroop => cfg!(feature = "regulator_droop"),
+            Self::ProgressiveSpring => cfg!(feature = "progressive_spring"),
+            Self::LaminarLeak => cfg!(feature = "laminar_leak"),
+            Self::GasTemperature => cfg!(feature = "gas_temperature"),
+        }
+    }
+
+    /// True when any mechanism is compiled in ([`Self::compiled`]): without one the twin's
+    /// extended path is compiled out.
+    pub const ANY_COMPILED: bool = {
+        let mut i = 0;
+        let mut any = false;
+        while i < Self::COUNT {
+            any |= Self::ALL[i].compiled();
+            i += 1;
+        }
+        any
+    };
+
     /// The mechanism called `name`, if any.
     pub fn from_name(name: &str) -> Option<Self> {
         Self::ALL.into_iter().find(|m| m.name() == name)
@@ -591,6 +622,22 @@ mod tests {
         let mut active = e.active();
         assert_eq!(active.next(), Some((Mechanism::RegulatorDroop, 0.5)));
         assert_eq!(active.next(), None);
+    }
+
+    /// Each mechanism has its cargo feature (named as the mechanism), `extensions` turns on
+    /// all of them, and build.rs knows the same list (for the `mechanism_image` cfg).
+    #[test]
+    fn every_mechanism_has_its_feature() {
+        extern crate std;
+        use std::format;
+        let manifest = include_str!("../Cargo.toml");
+        let build = include_str!("../build.rs");
+        let extensions = manifest.split("extensions = [").nth(1).and_then(|r| r.split(']').next()).unwrap_or("");
+        for m in Mechanism::ALL {
+            assert!(manifest.contains(&format!("\n{} = []", m.name())), "{m}: no feature");
+            assert!(extensions.contains(&format!("\"{}\"", m.name())), "{m}: not in extensions");
+            assert!(build.contains(&format!("\"{}\",", m.name())), "{m}: not in build.rs");
+        }
     }
 
     #[test]

@@ -37,7 +37,9 @@
 //!
 //! The optional mechanisms of [`Extensions`] (transport delay, valve lag, heat transfer,
 //! transducer lag/offset/gain, regulator droop, progressive spring, laminar leak, supply gas
-//! temperature) are integer terms too. With [`Extensions::NONE`] [`Twin::update`] takes the base
+//! temperature) are integer terms too, each compiled in by the cargo feature of its name
+//! (`extensions`: all; [`Mechanism::compiled`]): a firmware image carries only the one an audit
+//! named, and a term compiled out is exactly zero. With [`Extensions::NONE`] [`Twin::update`] takes the base
 //! path above unchanged (same bits, one predictable branch). With any mechanism on it takes
 //! [`SUBSTEPS`] pressure substeps per sample (the piston part is still skipped while held), and
 //! [`TwinSample::pressure`] is what the *transducer* reads (lag, then `offset + gain · p`), so
@@ -48,7 +50,7 @@
 //! are public pieces: [`crate::reservoir`] assembles its compressor-fed reservoir from them.
 
 use crate::fixed::{sat_i64, Q};
-use crate::mechanism::{Extensions, Mechanism::*};
+use crate::mechanism::{Extensions, Mechanism, Mechanism::*};
 use crate::params::{choked_orifice_gain, circle_area, ParamError, TwinParams, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
 use crate::units::{Meters, MetersQ32, PressureQ24};
 
@@ -364,14 +366,13 @@ impl TwinCoeffs {
     };
 
     /// Derives the integer coefficients; fails if a parameter is out of the supported range, or
-    /// uses an optional mechanism in a build without the `extensions` feature (the firmware).
+    /// uses an optional mechanism whose feature is off ([`Mechanism::compiled`]).
     pub fn new(p: &TwinParams) -> Result<Self, ParamError> {
         p.validate()?;
-        if !cfg!(feature = "extensions") {
-            if let Some((m, _)) = p.ext.active().next() {
-                // Built without the optional mechanisms (the firmware): the twin could not run them.
-                return Err(ParamError::Unsupported(m));
-            }
+        if let Some((m, _)) = p.ext.active().find(|(m, _)| !m.compiled()) {
+            // Built without this mechanism's code (a firmware image has at most the one an audit
+            // named): the twin could not run it.
+            return Err(ParamError::Unsupported(m));
         }
         let h = SUBSTEP_S;
         let orifice_gain = |d: Meters| choked_orifice_gain(p.discharge_coeff, d) * h / p.dead_volume_m3;
@@ -631,8 +632,8 @@ impl Twin {
     /// Advances one sample (10 ms). `valve_open`: the driver's valve connects the chamber to
     /// the supply (release requested); when closed the chamber vents through the same orifice.
     pub fn update(&mut self, valve_open: bool) -> TwinSample {
-        // Without the `extensions` feature (the firmware) the extended path is compiled out.
-        if cfg!(feature = "extensions") && self.coeffs.ext.active {
+        // Without any mechanism's feature (the nominal firmware) the extended path is compiled out.
+        if Mechanism::ANY_COMPILED && self.coeffs.ext.active {
             return self.update_extended(valve_open);
         }
         let k = &self.coeffs;
@@ -641,12 +642,12 @@ impl Twin {
             let steps = k.held_steps;
             let mult = i64::from(SUBSTEPS / steps);
             for _ in 0..steps {
-                self.pressure_step(upstream, Q::ZERO, mult);
+                self.pressure_step(upstream, Q::ZERO, mult, Q::ONE, Q::ZERO);
             }
         } else {
             for _ in 0..SUBSTEPS {
                 let dx = self.piston_substep();
-                self.pressure_step(upstream, dx, 1);
+                self.pressure_step(upstream, dx, 1, Q::ONE, Q::ZERO);
             }
         }
         TwinSample { pressure: self.state.p, travel: self.state.x }
@@ -753,8 +754,18 @@ impl Twin {
         x_new - x_old
     }
 
-    /// Pressure step of `mult` substeps with piston travel increment `dx`.
-    fn pressure_step(&mut self, upstream: PressureQ24, dx: Q<i64, 32>, mult: i64) {
+    /// Pressure step of `mult` substeps with piston travel increment `dx`. The extended path's
+    /// terms (one substep; compiled out without a mechanism that has them, so the base model's
+    /// code is unchanged): `share` of the substep the valve path is open for (valve line), and
+    /// `extra`, a net increment taken off (laminar leak, the other valve path's flow).
+    fn pressure_step(
+        &mut self,
+        upstream: PressureQ24,
+        dx: Q<i64, 32>,
+        mult: i64,
+        share: Q<i64, 30>,
+        extra: Q<i64, 40>,
+    ) {
         let k = &self.coeffs;
         let s = &mut self.state;
         let p = s.p;
@@ -762,10 +773,18 @@ impl Twin {
 
         // Increments are summed in Q40 and rounded once: at a 2 ms substep a small orifice adds
         // only a few hundred Q24 LSB, so truncating each term would bias the fill rate by ~0.1 %.
-        let inflow = orifice_dp(upstream, p, k.c_in);
+        let line = TransportDelay.compiled() || ValveLag.compiled();
+        let mut inflow = orifice_dp(upstream, p, k.c_in);
+        if line && share != Q::ONE {
+            inflow = share_mul_floor(inflow, share);
+        }
         let leak = orifice_dp(p, PressureQ24::ATMOSPHERE, k.c_leak);
         let work = compression_work(p, dx, k.kappa_area_per_v0);
-        let dp: Q<i64, 24> = ((inflow - leak) * mult - work).mul_round(inv_vol);
+        let mut sum = (inflow - leak) * mult - work;
+        if line || LaminarLeak.compiled() {
+            sum -= extra;
+        }
+        let dp: Q<i64, 24> = sum.mul_round(inv_vol);
         s.p = PressureQ24::from_q(p.q() + dp).clamp(PressureQ24(0), P_MAX);
     }
 }
@@ -784,6 +803,21 @@ fn corner_mul_floor<const F: u32, const G: u32, const H: u32>(a: Q<i64, F>, b: Q
         a.saturating_mul_floor(b)
     } else {
         a.mul_floor(b)
+    }
+}
+
+/// The flow `f` through a valve path times its share of the substep (Q40 · Q30). The 64-bit
+/// product overflows from a ≈ 2.8 mm orifice at 7.7 bar on (share ≤ 1, so the result always
+/// fits): with the `extensions` feature (the host, twins of any valid brake) it is formed in 128
+/// bits ([`Q::wide_mul_floor`]). A firmware image of one mechanism runs the nominal 1.25 mm brake,
+/// whose product fits 64 bits even from 30 bar (`tests::firmware_share_products_fit_64_bits`):
+/// the same bits in 64 ([`Q::mul_floor`]), without the 128-bit multiply's code.
+#[inline(always)]
+fn share_mul_floor(f: Q<i64, 40>, share: Q<i64, 30>) -> Q<i64, 40> {
+    if cfg!(feature = "extensions") {
+        f.wide_mul_floor(share)
+    } else {
+        f.mul_floor(share)
     }
 }
 
@@ -825,36 +859,94 @@ impl Twin {
         // with a laminar leak the held shortcut was never taken. Results are the same either
         // way, only the speed differs: `held_shortcut_with_a_laminar_leak_changes_no_result`.)
         // 128-bit product: |p − P0| up to 29 bar times the largest laminar gain overflows 64.
-        let laminar: Q<i64, 24> = (p - ATMOSPHERE).abs().wide_mul_floor(e.laminar);
+        // (Without the feature the coefficient is zero and so is the term: skipped.)
+        let laminar: Q<i64, 24> =
+            if LaminarLeak.compiled() { (p - ATMOSPHERE).abs().wide_mul_floor(e.laminar) } else { Q::ZERO };
         // p/64 while the gas temperature is a state.
         let thermal = Q::<i64, 24>(p.0 >> 6);
         let extra = choked * i64::from(SUBSTEPS)
             + laminar * 2 * i64::from(SUBSTEPS)
-            + thermal * i64::from(e.heat_rate != Q::ZERO);
+            + thermal * i64::from(HeatTransfer.compiled() && e.heat_rate != Q::ZERO);
         let held = shortcut && self.piston_held_within(upstream, extra);
         for _ in 0..SUBSTEPS {
             let p_start = self.state.p.q();
             let dx = if held { Q::ZERO } else { self.piston_substep() };
             self.pressure_substep_ext(&e, dx);
-            if e.sensor.lags() {
+            if SensorLag.compiled() && e.sensor.lags() {
                 self.ext.sensed = e.sensor.lag_substep(self.ext.sensed, p_start, self.state.p.q());
             }
         }
-        let lagged = if e.sensor.lags() { self.ext.sensed } else { self.state.p.q() };
-        (TwinSample { pressure: e.sensor.read(lagged), travel: self.state.x }, held)
+        let lagged = if SensorLag.compiled() && e.sensor.lags() { self.ext.sensed } else { self.state.p.q() };
+        // Without offset and gain the reading is `P0 + 0 + (p − P0) · 1`: p itself (Q24 gain
+        // exactly 2^24, the product shifted back exactly), so it is skipped.
+        let pressure = if SensorOffset.compiled() || SensorGain.compiled() {
+            e.sensor.read(lagged)
+        } else {
+            PressureQ24::from_q(lagged)
+        };
+        (TwinSample { pressure, travel: self.state.x }, held)
     }
 
     /// One 2 ms substep of valve and chamber with the optional mechanisms.
+    ///
+    /// The terms of a mechanism whose feature is off ([`Mechanism::compiled`]: a firmware image
+    /// of one mechanism) are compiled out; its coefficients are then zero (`TwinCoeffs::new`
+    /// rejects the mechanism), and every skipped term is an exact identity at zero (a product
+    /// by 0 or by exactly 1, a quotient of 0), so the bits are those of the full path. Runtime
+    /// shortcuts below are exact in the same way; the host (all mechanisms) takes them too.
     fn pressure_substep_ext(&mut self, e: &ExtCoeffs, dx: Q<i64, 32>) {
         let k = self.coeffs;
         let up = |open: bool| if open { k.supply } else { PressureQ24::ATMOSPHERE };
-        let paths = self.ext.line.substep(&e.line, e.line.delay);
+        let paths = if TransportDelay.compiled() || ValveLag.compiled() {
+            // The coefficients of a mechanism whose feature is off are zero: as constants, so
+            // that an image of the other one carries none of its code.
+            let l = &e.line;
+            let line = LineCoeffs {
+                delay: if TransportDelay.compiled() { l.delay } else { Q::ZERO },
+                lag_keep: if ValveLag.compiled() { l.lag_keep } else { Q::ZERO },
+                lag_gap_avg: if ValveLag.compiled() { l.lag_gap_avg } else { Q::ZERO },
+            };
+            self.ext.line.substep(&line, line.delay)
+        } else {
+            // No delay and no lag: `ValveLine::substep` with both zero reaches the command within
+            // the substep, with the whole substep's share (1) on the new position and 0 on the
+            // old one, and leaves the same state.
+            let line = &mut self.ext.line;
+            if line.pending {
+                line.elapsed += Q::ONE;
+                line.pending = false;
+                line.effective = line.command;
+                line.gap = Q::ZERO;
+            }
+            [LinePath { open: line.effective, share: Q::ONE }, LinePath { open: false, share: Q::ZERO }]
+        };
 
         let s = self.state;
         let p = s.p;
-        let thermal = e.heat_rate != Q::ZERO;
+        let thermal = HeatTransfer.compiled() && e.heat_rate != Q::ZERO;
+        let droop = RegulatorDroop.compiled() && e.droop != Q::ZERO;
+        let laminar = LaminarLeak.compiled() && e.laminar != Q::ZERO;
+        // The laminar leak's increment (Q24 · Q40 → Q40).
+        let laminar_dp: Q<i64, 40> = if laminar { (p.q() - ATMOSPHERE).mul_floor(e.laminar) } else { Q::ZERO };
+        if !thermal && !droop {
+            // Without wall heat and droop the sums below are `Σ share · inflow − leak − laminar −
+            // work`: the base model's step of one substep (the same function, so a one-mechanism
+            // image carries it once) on the first path with a share, the second path's flow and
+            // the laminar leak passed in as `extra` (integer sums: the same bits in any order).
+            let [mut a, mut b] = paths;
+            if a.share == Q::ZERO {
+                (a, b) = (b, a);
+            }
+            let second =
+                if b.share == Q::ZERO { Q::ZERO } else { share_mul_floor(orifice_dp(up(b.open), p, k.c_in), b.share) };
+            self.pressure_step(up(a.open), dx, 1, a.share, laminar_dp - second);
+            return;
+        }
         let theta = self.ext.theta.max(Q(1));
-        let sqrt_theta = if thermal { isqrt(theta) } else { Q::ONE };
+        // √θ only where a flow leaves at the gas temperature (reverse flow, vents): an integer
+        // square root per substep otherwise spent for nothing while the chamber fills.
+        let mut sqrt_cache = None;
+        let mut sqrt_theta = || *sqrt_cache.get_or_insert_with(|| if thermal { isqrt(theta) } else { Q::ONE });
         // Energy-weighted (pressure) and mass-weighted increments at V0: inflow at the supply
         // temperature, reverse flow and leaks at the gas temperature (thermal path only).
         let (mut energy, mut mass) = (Q::<i64, 40>::ZERO, Q::<i64, 40>::ZERO);
@@ -864,12 +956,13 @@ impl Twin {
                 continue;
             }
             let mut upstream = up(path.open);
-            if e.droop != Q::ZERO && upstream == k.supply && p < upstream {
+            if droop && upstream == k.supply && p < upstream {
                 upstream = drooped_supply(k.supply, p, k.c_in, share, e);
             }
-            // Q40 · Q30: the 64-bit product overflows from a ≈ 2.8 mm orifice at 7.7 bar on
-            // (share ≤ 1, so the result always fits): formed in 128 bits.
-            let f: Q<i64, 40> = orifice_dp(upstream, p, k.c_in).wide_mul_floor(share);
+            // Q40 · Q30 ([`share_mul_floor`]), skipped when the share is exactly 1 (the whole
+            // substep on one open path), where the product is the flow.
+            let f: Q<i64, 40> = orifice_dp(upstream, p, k.c_in);
+            let f = if share == Q::ONE { f } else { share_mul_floor(f, share) };
             if !thermal {
                 energy += f;
                 mass += f;
@@ -877,21 +970,38 @@ impl Twin {
                 energy += f.mul_floor(e.sqrt_theta_s);
                 mass += f.mul_floor(e.inv_sqrt_theta_s);
             } else {
-                energy += f.mul_floor(sqrt_theta);
-                mass += f.div_trunc(sqrt_theta);
+                energy += f.mul_floor(sqrt_theta());
+                mass += f.div_trunc(sqrt_theta());
             }
         }
-        let (vent_energy, vent_mass) = vent_increments(p, k.c_leak, e.laminar, theta, sqrt_theta, thermal);
-        energy -= vent_energy;
-        mass -= vent_mass;
+        // `vent_increments`, its terms that are zero skipped: no leak orifice (the nominal brake
+        // has none) or no laminar leak (then the products and the quotient are 0).
+        let leak = orifice_dp(p, PressureQ24::ATMOSPHERE, k.c_leak);
+        if leak != Q::ZERO {
+            if thermal {
+                energy -= leak.mul_floor(sqrt_theta());
+                mass -= leak.div_trunc(sqrt_theta());
+            } else {
+                energy -= leak;
+                mass -= leak;
+            }
+        }
+        if laminar {
+            energy -= if thermal { laminar_dp.mul_floor(theta) } else { laminar_dp };
+            mass -= laminar_dp;
+        }
 
         let inv_vol = inverse_volume_ratio(s.x, k.area_per_v0);
         let work = compression_work(p, dx, k.kappa_area_per_v0);
-        let dvol: Q<i64, 30> = if thermal { dx.mul_floor::<16, 30>(k.area_per_v0).mul_floor(inv_vol) } else { Q::ZERO };
-        let (p_new, theta_new) = chamber_substep(p, theta, energy - work, mass, inv_vol, dvol, e.heat_rate);
-        self.state.p = p_new;
         if thermal {
+            let dvol: Q<i64, 30> = dx.mul_floor::<16, 30>(k.area_per_v0).mul_floor(inv_vol);
+            let (p_new, theta_new) = chamber_substep(p, theta, energy - work, mass, inv_vol, dvol, e.heat_rate);
+            self.state.p = p_new;
             self.ext.theta = theta_new;
+        } else {
+            // `chamber_substep` without wall heat: θ unchanged, the pressure as in the base model.
+            let dp: Q<i64, 24> = (energy - work).mul_round(inv_vol);
+            self.state.p = PressureQ24::from_q(p.q() + dp).clamp(PressureQ24(0), P_MAX);
         }
     }
 }
@@ -1052,7 +1162,12 @@ pub fn flow_norm_q16(r_q16: u32) -> i64 {
 
 /// Pressure increment (bar, at V = V0, per substep) from the flow through an orifice of gain
 /// `c` between `from` and `to` (bar abs); negative when the flow reverses.
-#[inline]
+///
+/// Inlined at each use (speed), except in a firmware image of one mechanism (a mechanism's
+/// feature without `extensions`): there one out-of-line copy, as each inlined one is ≈ 250 B
+/// and the extended path's flows would not fit the flash budget.
+#[cfg_attr(not(mechanism_image), inline)]
+#[cfg_attr(mechanism_image, inline(never))]
 pub fn orifice_dp(from: PressureQ24, to: PressureQ24, c: Q<i64, 32>) -> Q<i64, 40> {
     if c == Q::ZERO || from == to {
         return Q::ZERO;
@@ -1127,13 +1242,18 @@ mod tests {
         assert_eq!(Twin::new(&TwinParams::nominal()), Ok(Twin::nominal()));
     }
 
-    /// Only in builds without the `extensions` feature: `cargo test --lib --no-default-features`.
-    #[cfg(not(feature = "extensions"))]
+    /// A mechanism whose feature is off is rejected, one whose feature is on accepted: every
+    /// feature set (`cargo test --lib --no-default-features [--features NAME]`).
     #[test]
-    fn without_the_extensions_feature_extended_parameters_are_rejected() {
-        let mut p = TwinParams::nominal();
-        p.ext[SensorOffset] = 0.1;
-        assert_eq!(Twin::new(&p).err(), Some(ParamError::Unsupported(SensorOffset)));
+    fn mechanisms_without_their_feature_are_rejected() {
+        for m in crate::mechanism::Mechanism::ALL {
+            let mut p = TwinParams::nominal();
+            p.ext[m] = m.descriptor().brake.plausible[0].0;
+            match Twin::new(&p) {
+                Ok(_) => assert!(m.compiled(), "{m:?}"),
+                Err(e) => assert!(!m.compiled() && e == ParamError::Unsupported(m), "{m:?}: {e:?}"),
+            }
+        }
         assert_eq!(Twin::new(&TwinParams::nominal()), Ok(Twin::nominal()));
     }
 
@@ -1225,6 +1345,190 @@ mod tests {
         p.ext[LaminarLeak] = 0.5;
         let n = held_shortcut_run(&p);
         assert!(n > 1500, "shortcut taken in {n} samples");
+    }
+
+    /// The extended path as it was before the mechanisms got their own features and the
+    /// exact shortcuts (`pressure_substep_ext`): kept verbatim as the reference the current
+    /// path must equal bit for bit (`extended_path_equals_the_reference_bit_for_bit`).
+    #[cfg(feature = "extensions")]
+    impl Twin {
+        /// [`Self::update_extended`]; `shortcut` allows the held shortcut (tests compare it with the
+        /// full piston substeps). Also returns whether the piston substeps were skipped.
+        fn reference_update_extended(&mut self, valve_open: bool, shortcut: bool) -> (TwinSample, bool) {
+            let e = self.coeffs.ext;
+            self.ext.line.command(valve_open);
+            // Held test on the most open upstream reachable in this sample, with a wide margin for
+            // the laminar leak and the temperature terms (a conservative bound only costs speed).
+            let any_open = self.ext.line.command || self.ext.line.effective;
+            let upstream = if any_open { self.coeffs.supply } else { PressureQ24::ATMOSPHERE };
+            let p = self.state.p.q();
+            let choked: Q<i64, 24> = p.mul_floor(self.coeffs.c_in + self.coeffs.c_leak);
+            // Laminar increment per substep: |p − P0| (Q24) · laminar (Q40) → Q24, a 40-bit shift.
+            // (It used to shift by 16, reading the Q48 product as Q24: 2^24 times too large, so
+            // with a laminar leak the held shortcut was never taken. Results are the same either
+            // way, only the speed differs: `held_shortcut_with_a_laminar_leak_changes_no_result`.)
+            // 128-bit product: |p − P0| up to 29 bar times the largest laminar gain overflows 64.
+            let laminar: Q<i64, 24> = (p - ATMOSPHERE).abs().wide_mul_floor(e.laminar);
+            // p/64 while the gas temperature is a state.
+            let thermal = Q::<i64, 24>(p.0 >> 6);
+            let extra = choked * i64::from(SUBSTEPS)
+                + laminar * 2 * i64::from(SUBSTEPS)
+                + thermal * i64::from(e.heat_rate != Q::ZERO);
+            let held = shortcut && self.piston_held_within(upstream, extra);
+            for _ in 0..SUBSTEPS {
+                let p_start = self.state.p.q();
+                let dx = if held { Q::ZERO } else { self.piston_substep() };
+                self.reference_pressure_substep(&e, dx);
+                if e.sensor.lags() {
+                    self.ext.sensed = e.sensor.lag_substep(self.ext.sensed, p_start, self.state.p.q());
+                }
+            }
+            let lagged = if e.sensor.lags() { self.ext.sensed } else { self.state.p.q() };
+            (TwinSample { pressure: e.sensor.read(lagged), travel: self.state.x }, held)
+        }
+
+        /// One 2 ms substep of valve and chamber with the optional mechanisms.
+        fn reference_pressure_substep(&mut self, e: &ExtCoeffs, dx: Q<i64, 32>) {
+            let k = self.coeffs;
+            let up = |open: bool| if open { k.supply } else { PressureQ24::ATMOSPHERE };
+            let paths = self.ext.line.substep(&e.line, e.line.delay);
+
+            let s = self.state;
+            let p = s.p;
+            let thermal = e.heat_rate != Q::ZERO;
+            let theta = self.ext.theta.max(Q(1));
+            let sqrt_theta = if thermal { isqrt(theta) } else { Q::ONE };
+            // Energy-weighted (pressure) and mass-weighted increments at V0: inflow at the supply
+            // temperature, reverse flow and leaks at the gas temperature (thermal path only).
+            let (mut energy, mut mass) = (Q::<i64, 40>::ZERO, Q::<i64, 40>::ZERO);
+            for path in paths {
+                let share = path.share;
+                if share == Q::ZERO {
+                    continue;
+                }
+                let mut upstream = up(path.open);
+                if e.droop != Q::ZERO && upstream == k.supply && p < upstream {
+                    upstream = drooped_supply(k.supply, p, k.c_in, share, e);
+                }
+                // Q40 · Q30: the 64-bit product overflows from a ≈ 2.8 mm orifice at 7.7 bar on
+                // (share ≤ 1, so the result always fits): formed in 128 bits.
+                let f: Q<i64, 40> = orifice_dp(upstream, p, k.c_in).wide_mul_floor(share);
+                if !thermal {
+                    energy += f;
+                    mass += f;
+                } else if f >= Q::ZERO {
+                    energy += f.mul_floor(e.sqrt_theta_s);
+                    mass += f.mul_floor(e.inv_sqrt_theta_s);
+                } else {
+                    energy += f.mul_floor(sqrt_theta);
+                    mass += f.div_trunc(sqrt_theta);
+                }
+            }
+            let (vent_energy, vent_mass) = vent_increments(p, k.c_leak, e.laminar, theta, sqrt_theta, thermal);
+            energy -= vent_energy;
+            mass -= vent_mass;
+
+            let inv_vol = inverse_volume_ratio(s.x, k.area_per_v0);
+            let work = compression_work(p, dx, k.kappa_area_per_v0);
+            let dvol: Q<i64, 30> =
+                if thermal { dx.mul_floor::<16, 30>(k.area_per_v0).mul_floor(inv_vol) } else { Q::ZERO };
+            let (p_new, theta_new) = chamber_substep(p, theta, energy - work, mass, inv_vol, dvol, e.heat_rate);
+            self.state.p = p_new;
+            if thermal {
+                self.ext.theta = theta_new;
+            }
+        }
+    }
+
+    /// The extended path (compiled per mechanism, with its exact shortcuts: a share of 1, a
+    /// settled valve line, √θ only where used, zero vents, no wall heat) gives the same bits as
+    /// the reference path in every sample and state: each mechanism alone at magnitudes over its
+    /// valid range, random combinations, on the nominal brake and anywhere in the base
+    /// parameter box, with the valve switched at random.
+    #[cfg(feature = "extensions")]
+    #[test]
+    fn extended_path_equals_the_reference_bit_for_bit() {
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut unit = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut runs = 0;
+        for case in 0..300 {
+            let mut p = TwinParams::nominal();
+            if case % 3 == 2 {
+                let mut r = |lo: f64, hi: f64| lo + (hi - lo) * unit();
+                p = p.with_orifice_mm(r(0.3, 4.0));
+                p.supply = crate::units::BarG(r(0.0, 15.0));
+                p.dead_volume_m3 = r(0.2e-3, 50e-3);
+                p.piston_area_m2 = r(1e-4, 0.1);
+                p.stroke = Meters(r(1e-3, 0.4));
+                p.mass_kg = r(0.5, 500.0);
+                p.preload_n = r(0.0, 60e3);
+                p.spring_rate_n_per_m = r(0.0, 4e6);
+                p.coulomb_n = r(1.0, 1e4);
+                p.static_n = r(p.coulomb_n, 1e4);
+            }
+            if case % 5 == 1 {
+                p = p.with_leak_mm(unit());
+            }
+            let ms = crate::mechanism::Mechanism::ALL;
+            if case < 200 {
+                // One mechanism, cycling through the ten.
+                let m = ms[case % ms.len()];
+                let (lo, hi) = m.descriptor().brake.valid;
+                p.ext[m] = lo + (hi - lo) * unit();
+            } else {
+                for m in ms {
+                    if unit() < 0.35 {
+                        let (lo, hi) = m.descriptor().brake.valid;
+                        p.ext[m] = lo + (hi - lo) * unit();
+                    }
+                }
+            }
+            let (Ok(mut new), Ok(mut reference)) = (Twin::new(&p), Twin::new(&p)) else { continue };
+            if !new.coeffs.ext.active {
+                continue;
+            }
+            runs += 1;
+            // Regulator droop costs a bisection per substep: shorter runs.
+            let samples = if p.ext.is_on(RegulatorDroop) { 1500 } else { 6000 };
+            let mut open = true;
+            for i in 0..samples {
+                if i > 0 && unit() < 0.002 {
+                    open = !open;
+                }
+                let (a, held_a) = new.update_extended_with(open, true);
+                let (b, held_b) = reference.reference_update_extended(open, true);
+                assert_eq!(
+                    (a, held_a, new.state, new.ext),
+                    (b, held_b, reference.state, reference.ext),
+                    "sample {i} of {p:?}"
+                );
+            }
+        }
+        assert!(runs >= 250, "{runs} runs");
+    }
+
+    /// What [`share_mul_floor`] relies on in a firmware image (nominal brake, one mechanism at
+    /// any valid magnitude): the largest flow of a valve path (choked, from the largest pressure
+    /// the twin represents, 30 bar, four times the supply) times a share of 1 fits 64 bits.
+    #[cfg(feature = "extensions")]
+    #[test]
+    fn firmware_share_products_fit_64_bits() {
+        for m in crate::mechanism::Mechanism::ALL {
+            let (lo, hi) = m.descriptor().brake.valid;
+            for v in [lo, hi, 0.5 * (lo + hi)] {
+                let mut p = TwinParams::nominal();
+                p.ext[m] = v;
+                let Ok(c) = TwinCoeffs::new(&p) else { continue };
+                let f = orifice_dp(P_MAX, PressureQ24(0), c.c_in.max(c.c_leak));
+                let product = i128::from(f.0) * i128::from(Q::<i64, 30>::ONE.0);
+                assert!(product <= i128::from(i64::MAX), "{m:?}={v}: {product}");
+            }
+        }
     }
 
     #[test]

@@ -248,19 +248,19 @@ impl CycleStats {
     }
 }
 
-/// The twin's mechanisms of the extended image (feature `extensions`), chosen at build time
-/// (`PBM_FW_MECHANISM`, checked by build.rs).
-#[cfg(feature = "extensions")]
+/// The twin's mechanisms of the extended image (a mechanism's feature, or `extensions`), chosen
+/// at build time (`PBM_FW_MECHANISM`, checked by build.rs, which sets `pbm_mechanisms`).
+#[cfg(pbm_mechanisms)]
 pub mod mechanisms {
     include!(concat!(env!("OUT_DIR"), "/mechanisms.rs"));
 }
 
-/// The monitor's twin: the nominal brake, or (feature `extensions`) the nominal brake with the
+/// The monitor's twin: the nominal brake, or (a mechanism's feature) the nominal brake with the
 /// build-time mechanisms, from coefficients build.rs derived on the host.
 pub const fn twin() -> pbm::Twin {
-    #[cfg(feature = "extensions")]
+    #[cfg(pbm_mechanisms)]
     return pbm::Twin::from_coeffs(pbm::twin::TwinCoeffs::from_raw(mechanisms::TWIN_RAW));
-    #[cfg(not(feature = "extensions"))]
+    #[cfg(not(pbm_mechanisms))]
     pbm::Twin::nominal()
 }
 
@@ -269,9 +269,13 @@ pub const fn twin() -> pbm::Twin {
 // Inlined: the ~2.4 KiB result is built in place, not copied through the stack.
 #[inline(always)]
 pub fn pipeline() -> Result<Pipeline, pbm::ParamError> {
-    #[cfg(feature = "extensions")]
-    return Pipeline::with_twin(twin());
-    #[cfg(not(feature = "extensions"))]
+    // The extended twin from flash: one copy of its ≈ 350 bytes, where building its
+    // coefficients in place would take ≈ 400 more bytes of code than the nominal twin's.
+    #[cfg(pbm_mechanisms)]
+    static TWIN: pbm::Twin = twin();
+    #[cfg(pbm_mechanisms)]
+    return Pipeline::with_twin(TWIN);
+    #[cfg(not(pbm_mechanisms))]
     Pipeline::nominal()
 }
 

@@ -231,6 +231,21 @@ pub fn lint() -> Result<()> {
         "-D",
         "warnings",
     ])?;
+    // An image of one mechanism (the core's `mechanism_image` code: the orifice flow out of
+    // line, the extended path with only that mechanism's terms; build.rs's default magnitude).
+    cargo(&[
+        "clippy",
+        "--manifest-path",
+        "firmware/Cargo.toml",
+        "--target",
+        TARGET,
+        "--all-targets",
+        "--features",
+        "valve_lag",
+        "--",
+        "-D",
+        "warnings",
+    ])?;
     // The library as the board image links it (without the QEMU drivers): the board
     // workspace's clippy does not lint this path dependency.
     cargo(&[

@@ -172,6 +172,25 @@ fn main() -> ! {
         reservoir_cost.add(measure(overhead, || reservoir.update(loaded, oil)).0);
     }
 
+    // An extended twin's image: its twin must give the host's bits (build.rs hashed the host's
+    // extended twin, every mechanism compiled in, over the same schedule).
+    #[cfg(pbm_mechanisms)]
+    {
+        use pbm_firmware::app::mechanisms::{TWIN_CHECK_CLOSED, TWIN_CHECK_OPEN, TWIN_HASH};
+        let mut check = pbm_firmware::app::twin();
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for i in 0..TWIN_CHECK_OPEN + TWIN_CHECK_CLOSED {
+            let s = check.update(i < TWIN_CHECK_OPEN);
+            for b in s.pressure.0.to_le_bytes().into_iter().chain(s.travel.0.to_le_bytes()) {
+                h = (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3);
+            }
+        }
+        if h != TWIN_HASH {
+            println!("ext_twin_check=MISMATCH (image {=u64:x}, host {=u64:x})", h, TWIN_HASH);
+            exit(false)
+        }
+        println!("ext_twin_check=equal");
+    }
     println!("samples={=usize}", ADC_TRACE.len());
     println!("frames={=usize}", frames);
     println!("pipeline_instr_per_sample_mean={=u64}", per_sample.mean());
