@@ -50,12 +50,23 @@ pub fn to_record(s: &StoredRelease) -> ReleaseRecord {
     }
 }
 
+/// The releases a locomotive's trends and warnings follow: those of one source, the one with
+/// the most releases (recorded traces on a tie, as they also carry the orifice estimate). A
+/// release seen both as a trace and in a cab CAN log is the same release twice; mixing both
+/// would count it twice and let the CUSUM alarm twice as fast.
+pub fn trend_series(stored: &[StoredRelease]) -> Vec<ReleaseRecord> {
+    let traces = stored.iter().filter(|s| s.source == Source::Trace.label()).count();
+    let can = stored.len() - traces;
+    let source = if traces >= can { Source::Trace } else { Source::Can };
+    stored.iter().filter(|s| s.source == source.label()).map(to_record).collect()
+}
+
 /// The status of every locomotive in the database.
 pub fn status(db: &FleetDb, rule: &WarningRule) -> Result<Vec<LocoStatus>> {
     let mut out = Vec::new();
     for loco in db.locomotives()? {
         let stored = db.releases(&loco)?;
-        let records: Vec<ReleaseRecord> = stored.iter().map(to_record).collect();
+        let records = trend_series(&stored);
         let mut verdicts = BTreeMap::new();
         for s in &stored {
             *verdicts.entry(s.verdict.clone()).or_insert(0) += 1;
@@ -105,7 +116,7 @@ pub fn lines(statuses: &[LocoStatus]) -> Vec<String> {
                             .and_then(|t| t.releases_to_edge)
                             .map_or_else(String::new, |n| format!(", edge in ≈ {n:.0} releases"));
                         format!(
-                            "WARNING {} drifting toward {} {} since release {}{eta}",
+                            "WARNING {} drifting toward {:.1} {} since release {}{eta}",
                             w.parameter.name(),
                             w.parameter.threshold(),
                             w.parameter.unit(),

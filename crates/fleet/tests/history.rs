@@ -220,3 +220,22 @@ fn cab_can_logs_are_ingested_per_locomotive_and_release() {
     assert!(records.is_empty());
     assert_eq!(errors.iter().map(|e| e.line).collect::<Vec<_>>(), [1, 3]);
 }
+
+#[test]
+fn trends_follow_one_source_per_locomotive() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut db = FleetDb::open(&dir.path().join("fleet.sqlite")).unwrap();
+    let can = |origin: &str, k: i64| {
+        let mut r = fake(origin, k);
+        r.source = Source::Can;
+        r.orifice_mm = None;
+        r
+    };
+    db.store_file((0..30).map(|k| Ok(fake("t.csv", k)))).unwrap().unwrap();
+    db.store_file((0..30).map(|k| Ok(can("cab.log", k)))).unwrap().unwrap();
+    let stored = db.releases("loco-09").unwrap();
+    assert_eq!(stored.len(), 60);
+    let series = pbm_fleet::status::trend_series(&stored);
+    assert_eq!(series.len(), 30);
+    assert!(series.iter().all(|r| r.source == Source::Trace));
+}
