@@ -87,6 +87,7 @@ pub fn run(command: Command) -> Result<Skipped> {
         Command::Fleet(FleetCommand::Ingest(a)) => pbm_fleet::commands::run_ingest(&a.into()),
         Command::Fleet(FleetCommand::Status(a)) => done(pbm_fleet::commands::run_status(&a.into())),
         Command::Fleet(FleetCommand::Degrade(a)) => done(pbm_fleet::commands::run_degrade(&a.into())),
+        Command::Fleet(FleetCommand::Report(a)) => done(pbm_fleet::commands::run_report(&a.into())),
     }
 }
 
@@ -728,6 +729,25 @@ pub enum FleetCommand {
     /// Write a slow-degradation data set: healthy locomotives and locomotives whose leak grows
     /// or whose release orifice clogs over many releases.
     Degrade(FleetDegradeArgs),
+    /// Write the fleet page (DIR/index.html, self-contained): a table of locomotives, then each
+    /// locomotive's trends against the fault edges.
+    Report(FleetReportArgs),
+}
+
+#[derive(Args)]
+pub struct FleetReportArgs {
+    /// The fleet database (SQLite file).
+    #[arg(long)]
+    db: PathBuf,
+    /// Output directory.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+impl From<FleetReportArgs> for pbm_fleet::commands::ReportRun {
+    fn from(a: FleetReportArgs) -> Self {
+        Self { db: a.db, out: a.out }
+    }
 }
 
 #[derive(Args)]

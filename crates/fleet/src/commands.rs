@@ -80,3 +80,23 @@ pub fn run_degrade(a: &DegradeRun) -> Result<()> {
     eprintln!("wrote {} releases of {} locomotives to {}", written.len(), o.wear.len(), a.out.display());
     Ok(())
 }
+
+/// `fleet report`: the fleet page.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ReportRun {
+    /// The fleet database (must exist).
+    pub db: PathBuf,
+    /// Output directory (`index.html` is written there).
+    pub out: PathBuf,
+}
+
+/// Writes the page; says where (stderr).
+pub fn run_report(a: &ReportRun) -> Result<()> {
+    if !a.db.is_file() {
+        bail!("{}: no fleet database (create one with `fleet ingest`)", a.db.display());
+    }
+    let db = FleetDb::open(&a.db)?;
+    let path = crate::report::write(&db, &a.out, &WarningRule::default())?;
+    eprintln!("wrote {}", path.display());
+    Ok(())
+}

@@ -3,6 +3,7 @@
 //!
 //! - [`commands`]: the `host-sim fleet` commands.
 //! - [`record`]: one release as the history keeps it.
+//! - [`report`]: the fleet page (HTML, inline SVG).
 //! - [`db`]: the fleet history in SQLite (schema, natural key, transactions, WAL).
 //! - [`ingest`]: traces, data sets and cab CAN logs into the history.
 //! - [`trend`]: per-locomotive trends of the estimates and the early warning (CUSUM).
@@ -18,6 +19,7 @@ pub mod db;
 pub mod ingest;
 pub mod measure;
 pub mod record;
+pub mod report;
 pub mod scenario;
 pub mod status;
 pub mod trend;

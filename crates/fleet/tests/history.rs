@@ -239,3 +239,23 @@ fn trends_follow_one_source_per_locomotive() {
     assert_eq!(series.len(), 30);
     assert!(series.iter().all(|r| r.source == Source::Trace));
 }
+
+#[test]
+fn the_fleet_page_leads_with_the_locomotives_and_names_no_code() {
+    let dir = tempfile::tempdir().unwrap();
+    let set = small_set(dir.path(), "a", 41, vec![Wear::Healthy, Wear::Leak]);
+    let mut db = FleetDb::open(&dir.path().join("fleet.sqlite")).unwrap();
+    ingest(&mut db, &[&set], &opts()).unwrap();
+    let out = dir.path().join("report");
+    let path = pbm_fleet::report::write(&db, &out, &Default::default()).unwrap();
+    let html = std::fs::read_to_string(path).unwrap();
+    let found = pbm_report::report_html::check(&html, &["fleet", "loco-loco01", "loco-loco02"]).unwrap();
+    assert_eq!(found.sections[0], "fleet", "the fleet table comes first");
+    // Two sparklines and three trend charts per locomotive.
+    assert_eq!(found.svgs, 2 + 2 * 3);
+    assert_eq!(found.table_rows, 2);
+    assert!(pbm_report::report_html::code_reference(&html).is_none());
+    // Plot text at 12 px, no smaller font anywhere in the charts.
+    assert!(html.contains("font-size=\"12\""));
+    assert!(!html.contains("SPARKLINE-"));
+}
