@@ -162,7 +162,7 @@ fn trend_chart(records: &[ReleaseRecord], p: Parameter, rule: &WarningRule) -> O
     );
     let _ = write!(
         s,
-        "<text transform=\"translate(14 {:.1}) rotate(-90)\" text-anchor=\"middle\">{}, {}</text>",
+        "<text transform=\"translate(18 {:.1}) rotate(-90)\" text-anchor=\"middle\">{}, {}</text>",
         top + (h - top - bottom) / 2.0,
         escape(p.name()),
         escape(p.unit())

@@ -14,9 +14,12 @@ use std::collections::BTreeMap;
 pub struct LocoStatus {
     /// Locomotive name.
     pub locomotive: String,
-    /// Releases stored.
+    /// Releases followed (those of one source, [`trend_series`]).
     pub releases: usize,
-    /// Releases per verdict label.
+    /// Rows stored for the locomotive (more than `releases` when the same releases came both
+    /// as traces and in cab CAN logs).
+    pub stored: usize,
+    /// Releases followed, per verdict label.
     pub verdicts: BTreeMap<String, usize>,
     /// The latest release's verdict label and confidence.
     pub latest_verdict: Option<(String, Option<i64>)>,
@@ -55,10 +58,15 @@ pub fn to_record(s: &StoredRelease) -> ReleaseRecord {
 /// release seen both as a trace and in a cab CAN log is the same release twice; mixing both
 /// would count it twice and let the CUSUM alarm twice as fast.
 pub fn trend_series(stored: &[StoredRelease]) -> Vec<ReleaseRecord> {
+    followed(stored).map(to_record).collect()
+}
+
+/// The stored releases of the source [`trend_series`] follows.
+pub fn followed(stored: &[StoredRelease]) -> impl Iterator<Item = &StoredRelease> {
     let traces = stored.iter().filter(|s| s.source == Source::Trace.label()).count();
     let can = stored.len() - traces;
     let source = if traces >= can { Source::Trace } else { Source::Can };
-    stored.iter().filter(|s| s.source == source.label()).map(to_record).collect()
+    stored.iter().filter(move |s| s.source == source.label())
 }
 
 /// The status of every locomotive in the database.
@@ -68,14 +76,15 @@ pub fn status(db: &FleetDb, rule: &WarningRule) -> Result<Vec<LocoStatus>> {
         let stored = db.releases(&loco)?;
         let records = trend_series(&stored);
         let mut verdicts = BTreeMap::new();
-        for s in &stored {
-            *verdicts.entry(s.verdict.clone()).or_insert(0) += 1;
+        for r in followed(&stored) {
+            *verdicts.entry(r.verdict.clone()).or_insert(0) += 1;
         }
         out.push(LocoStatus {
             locomotive: loco,
-            releases: stored.len(),
+            releases: records.len(),
+            stored: stored.len(),
             verdicts,
-            latest_verdict: stored.last().map(|s| (s.verdict.clone(), s.confidence_pct)),
+            latest_verdict: followed(&stored).last().map(|r| (r.verdict.clone(), r.confidence_pct)),
             trends: Parameter::ALL.map(|p| trend(&records, p)),
             warnings: warnings(&records, rule),
         });
@@ -126,8 +135,13 @@ pub fn lines(statuses: &[LocoStatus]) -> Vec<String> {
                     .collect();
                 w.join("; ")
             };
+            let stored = if s.stored > s.releases {
+                format!(" ({} stored from traces and cab logs)", s.stored)
+            } else {
+                String::new()
+            };
             format!(
-                "{}  releases {}  latest {}  mix [{}]  {}  {}",
+                "{}  releases {}{stored}  latest {}  mix [{}]  {}  {}",
                 s.locomotive,
                 s.releases,
                 latest,
