@@ -259,3 +259,13 @@ fn the_fleet_page_leads_with_the_locomotives_and_names_no_code() {
     assert!(html.contains("font-size=\"12\""));
     assert!(!html.contains("SPARKLINE-"));
 }
+
+#[test]
+fn a_file_that_is_not_a_fleet_database_is_refused_with_its_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("notes.sqlite");
+    std::fs::write(&p, "this is not a database, just a long enough line of text to fill a header.\n".repeat(20))
+        .unwrap();
+    let e = FleetDb::open(&p).err().expect("refused");
+    assert!(format!("{e:#}").contains("notes.sqlite"), "{e:#}");
+}
