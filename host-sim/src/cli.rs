@@ -88,6 +88,7 @@ pub fn run(command: Command) -> Result<Skipped> {
         Command::Fleet(FleetCommand::Status(a)) => done(pbm_fleet::commands::run_status(&a.into())),
         Command::Fleet(FleetCommand::Degrade(a)) => done(pbm_fleet::commands::run_degrade(&a.into())),
         Command::Fleet(FleetCommand::Report(a)) => done(pbm_fleet::commands::run_report(&a.into())),
+        Command::Fleet(FleetCommand::Export(a)) => done(pbm_fleet::commands::run_export(&a.into())),
     }
 }
 
@@ -732,6 +733,24 @@ pub enum FleetCommand {
     /// Write the fleet page (DIR/index.html, self-contained): a table of locomotives, then each
     /// locomotive's trends against the fault edges.
     Report(FleetReportArgs),
+    /// Export every stored release as one Parquet file (for pandas, polars, DuckDB, Spark).
+    Export(FleetExportArgs),
+}
+
+#[derive(Args)]
+pub struct FleetExportArgs {
+    /// The fleet database (SQLite file).
+    #[arg(long)]
+    db: PathBuf,
+    /// The Parquet file to write.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+impl From<FleetExportArgs> for pbm_fleet::commands::ExportRun {
+    fn from(a: FleetExportArgs) -> Self {
+        Self { db: a.db, out: a.out }
+    }
 }
 
 #[derive(Args)]

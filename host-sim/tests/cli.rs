@@ -390,6 +390,11 @@ fn fleet_ingest_status_and_report_and_a_bad_trace_exits_3() {
     let out = host_sim(&[os("fleet"), os("report"), os("--db"), db.as_os_str(), os("--out"), report.as_os_str()]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     assert!(std::fs::read_to_string(report.join("index.html")).unwrap().contains("loco-02"));
+    let parquet = dir.path().join("fleet.parquet");
+    let out = host_sim(&[os("fleet"), os("export"), os("--db"), db.as_os_str(), os("--out"), parquet.as_os_str()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("wrote 12 releases"));
+    assert!(std::fs::read(&parquet).unwrap().starts_with(b"PAR1"));
     let missing = dir.path().join("none.sqlite");
     let out = host_sim(&[os("fleet"), os("status"), os("--db"), missing.as_os_str()]);
     assert_eq!(out.status.code(), Some(1));

@@ -100,3 +100,23 @@ pub fn run_report(a: &ReportRun) -> Result<()> {
     eprintln!("wrote {}", path.display());
     Ok(())
 }
+
+/// `fleet export`: the history as a Parquet file.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ExportRun {
+    /// The fleet database (must exist).
+    pub db: PathBuf,
+    /// The Parquet file to write.
+    pub out: PathBuf,
+}
+
+/// Writes the Parquet file; says how many rows (stderr).
+pub fn run_export(a: &ExportRun) -> Result<()> {
+    if !a.db.is_file() {
+        bail!("{}: no fleet database (create one with `fleet ingest`)", a.db.display());
+    }
+    let db = FleetDb::open(&a.db)?;
+    let rows = crate::export::export(&db, &a.out)?;
+    eprintln!("wrote {rows} releases to {}", a.out.display());
+    Ok(())
+}

@@ -5,6 +5,7 @@
 //! - [`record`]: one release as the history keeps it.
 //! - [`report`]: the fleet page (HTML, inline SVG).
 //! - [`db`]: the fleet history in SQLite (schema, natural key, transactions, WAL).
+//! - [`export`]: the history as a Parquet file.
 //! - [`ingest`]: traces, data sets and cab CAN logs into the history.
 //! - [`trend`]: per-locomotive trends of the estimates and the early warning (CUSUM).
 //! - [`status`]: the one-line-per-locomotive view.
@@ -16,6 +17,7 @@
 
 pub mod commands;
 pub mod db;
+pub mod export;
 pub mod ingest;
 pub mod measure;
 pub mod record;

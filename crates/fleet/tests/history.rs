@@ -269,3 +269,30 @@ fn a_file_that_is_not_a_fleet_database_is_refused_with_its_name() {
     let e = FleetDb::open(&p).err().expect("refused");
     assert!(format!("{e:#}").contains("notes.sqlite"), "{e:#}");
 }
+
+#[test]
+fn the_parquet_export_holds_every_release_with_its_nulls() {
+    use parquet::file::reader::{FileReader, SerializedFileReader};
+    use parquet::record::RowAccessor;
+    let dir = tempfile::tempdir().unwrap();
+    let mut db = FleetDb::open(&dir.path().join("fleet.sqlite")).unwrap();
+    db.store_file((0..4).map(|k| Ok(fake("t.csv", k)))).unwrap().unwrap();
+    let mut r = fake("cab.log", 9);
+    r.source = Source::Can;
+    r.orifice_mm = None;
+    r.time_s = Some(12.5);
+    db.store_file([Ok(r)]).unwrap().unwrap();
+    let path = dir.path().join("fleet.parquet");
+    assert_eq!(pbm_fleet::export::export(&db, &path).unwrap(), 5);
+    let reader = SerializedFileReader::try_from(std::fs::File::open(&path).unwrap()).unwrap();
+    assert_eq!(reader.metadata().file_metadata().num_rows(), 5);
+    let rows: Vec<_> = reader.get_row_iter(None).unwrap().map(|r| r.unwrap()).collect();
+    let can = rows.iter().find(|r| r.get_string(1).unwrap() == "can").unwrap();
+    assert_eq!(can.get_string(0).unwrap(), "loco-09");
+    assert_eq!(can.get_double(5).unwrap(), 12.5);
+    assert!(can.get_double(9).is_err(), "no orifice estimate on CAN: null");
+    assert_eq!(can.get_double(11).unwrap(), 7.7);
+    let trace = rows.iter().find(|r| r.get_string(1).unwrap() == "trace").unwrap();
+    assert_eq!(trace.get_double(9).unwrap(), 1.25);
+    assert_eq!(trace.get_string(6).unwrap(), "none");
+}
