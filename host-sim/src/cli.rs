@@ -6,6 +6,7 @@ use clap::{Args, Parser, Subcommand};
 use pbm::mechanism::Mechanism;
 use pbm::{FaultClass, TwinParams};
 use pbm_demo::demo::DemoOptions;
+use pbm_fleet::scenario::DegradationOptions;
 use pbm_io::error::Skipped;
 use pbm_lab::audit::AuditRunOptions;
 use pbm_lab::audit_sweep::SweepOptions;
@@ -59,6 +60,9 @@ pub enum Command {
     Evaluate(EvaluateArgs),
     /// The main job in one run: fleet data, training, evaluation, CAN replay, audit, report/index.html.
     Demo(DemoArgs),
+    /// The fleet history: store releases per locomotive, show verdicts, trends and early warnings.
+    #[command(subcommand)]
+    Fleet(FleetCommand),
 }
 
 /// Runs a command; returns the inputs it skipped.
@@ -80,6 +84,11 @@ pub fn run(command: Command) -> Result<Skipped> {
         Command::Train(a) => pbm_ml::train::run(&a.into()),
         Command::Evaluate(a) => pbm_ml::evaluate::run(&a.into()),
         Command::Demo(a) => done(pbm_demo::demo::run(&a.into())),
+        Command::Fleet(FleetCommand::Ingest(a)) => pbm_fleet::commands::run_ingest(&a.into()),
+        Command::Fleet(FleetCommand::Status(a)) => done(pbm_fleet::commands::run_status(&a.into())),
+        Command::Fleet(FleetCommand::Degrade(a)) => done(pbm_fleet::commands::run_degrade(&a.into())),
+        Command::Fleet(FleetCommand::Report(a)) => done(pbm_fleet::commands::run_report(&a.into())),
+        Command::Fleet(FleetCommand::Export(a)) => done(pbm_fleet::commands::run_export(&a.into())),
     }
 }
 
@@ -703,6 +712,141 @@ mod tests {
         let help = Cli::command().find_subcommand_mut("generate").expect("generate").render_long_help().to_string();
         for m in Mechanism::ALL {
             assert!(help.contains(m.name()), "{m} missing from `generate --help`");
+        }
+    }
+}
+
+// ---- fleet ---------------------------------------------------------------------------------
+
+#[derive(Subcommand)]
+pub enum FleetCommand {
+    /// Store releases in the fleet database: traces and data sets are replayed through the
+    /// monitor, candump logs decoded as the cab display decodes them. Re-ingesting does not
+    /// duplicate a release.
+    Ingest(FleetIngestArgs),
+    /// One line per locomotive: releases, verdict mix, latest estimates with their trend, and
+    /// early warnings of a drift toward a fault.
+    Status(FleetStatusArgs),
+    /// Write a slow-degradation data set: healthy locomotives and locomotives whose leak grows
+    /// or whose release orifice clogs over many releases.
+    Degrade(FleetDegradeArgs),
+    /// Write the fleet page (DIR/index.html, self-contained): a table of locomotives, then each
+    /// locomotive's trends against the fault edges.
+    Report(FleetReportArgs),
+    /// Export every stored release as one Parquet file (for pandas, polars, DuckDB, Spark).
+    Export(FleetExportArgs),
+}
+
+#[derive(Args)]
+pub struct FleetExportArgs {
+    /// The fleet database (SQLite file).
+    #[arg(long)]
+    db: PathBuf,
+    /// The Parquet file to write.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+impl From<FleetExportArgs> for pbm_fleet::commands::ExportRun {
+    fn from(a: FleetExportArgs) -> Self {
+        Self { db: a.db, out: a.out }
+    }
+}
+
+#[derive(Args)]
+pub struct FleetReportArgs {
+    /// The fleet database (SQLite file).
+    #[arg(long)]
+    db: PathBuf,
+    /// Output directory.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+impl From<FleetReportArgs> for pbm_fleet::commands::ReportRun {
+    fn from(a: FleetReportArgs) -> Self {
+        Self { db: a.db, out: a.out }
+    }
+}
+
+#[derive(Args)]
+pub struct FleetIngestArgs {
+    /// The fleet database (SQLite file, created if absent).
+    #[arg(long)]
+    db: PathBuf,
+    /// Trace files, data set directories (with manifest.csv) and candump logs.
+    #[arg(required = true)]
+    paths: Vec<PathBuf>,
+    /// Worker threads for replaying traces (0 = all cores).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+}
+
+impl From<FleetIngestArgs> for pbm_fleet::commands::IngestRun {
+    fn from(a: FleetIngestArgs) -> Self {
+        Self { db: a.db, paths: a.paths, options: pbm_fleet::ingest::IngestOptions { threads: a.threads } }
+    }
+}
+
+#[derive(Args)]
+pub struct FleetStatusArgs {
+    /// The fleet database (SQLite file).
+    #[arg(long)]
+    db: PathBuf,
+}
+
+impl From<FleetStatusArgs> for pbm_fleet::commands::StatusRun {
+    fn from(a: FleetStatusArgs) -> Self {
+        Self { db: a.db }
+    }
+}
+
+#[derive(Args)]
+pub struct FleetDegradeArgs {
+    /// Output directory (must be empty or absent).
+    #[arg(long)]
+    out: PathBuf,
+    /// Healthy locomotives (named first: loco-01, …).
+    #[arg(long, default_value_t = 2)]
+    healthy: usize,
+    /// Locomotives whose leak grows from none to --leak-end-mm.
+    #[arg(long, default_value_t = 1)]
+    leak: usize,
+    /// Locomotives whose release orifice clogs from 1.25 mm to --orifice-end-mm.
+    #[arg(long, default_value_t = 1)]
+    clog: usize,
+    /// Releases per locomotive.
+    #[arg(long, default_value_t = DegradationOptions::new(0, Vec::new()).releases)]
+    releases: usize,
+    /// Release (0-based) at which the wear starts.
+    #[arg(long, default_value_t = DegradationOptions::new(0, Vec::new()).onset)]
+    onset: usize,
+    /// Leak diameter at the last release, mm.
+    #[arg(long, default_value_t = DegradationOptions::new(0, Vec::new()).leak_end_mm)]
+    leak_end_mm: f64,
+    /// Release orifice diameter at the last release, mm.
+    #[arg(long, default_value_t = DegradationOptions::new(0, Vec::new()).orifice_end_mm)]
+    orifice_end_mm: f64,
+    /// Random seed (fleet spread and sensor noise).
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+}
+
+impl From<FleetDegradeArgs> for pbm_fleet::commands::DegradeRun {
+    fn from(a: FleetDegradeArgs) -> Self {
+        Self {
+            out: a.out,
+            healthy: a.healthy,
+            leak: a.leak,
+            clog: a.clog,
+            options: DegradationOptions {
+                seed: a.seed,
+                wear: Vec::new(),
+                releases: a.releases,
+                onset: a.onset,
+                leak_end_mm: a.leak_end_mm,
+                orifice_end_mm: a.orifice_end_mm,
+            },
         }
     }
 }

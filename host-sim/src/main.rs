@@ -1,5 +1,5 @@
 //! `host-sim`: the command line of the host tools. Parsing and exit codes only; every command
-//! is a call into a library crate (`pbm-lab`, `pbm-ml`, `pbm-demo`) with its options struct.
+//! is a call into a library crate (`pbm-lab`, `pbm-ml`, `pbm-demo`, `pbm-fleet`) with its options struct.
 //!
 //! Exit status: 0 when everything was done, 1 when the command failed, 2 for a usage error,
 //! [`pbm_io::error::SKIPPED_EXIT_CODE`] (3) when the command completed and wrote its outputs but

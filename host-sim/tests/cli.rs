@@ -347,3 +347,55 @@ fn can_decode_strict_exit_codes() {
         assert_eq!(lenient.status.code(), Some(0), "{name} without --strict");
     }
 }
+
+#[test]
+fn fleet_ingest_status_and_report_and_a_bad_trace_exits_3() {
+    let dir = tempfile::tempdir().unwrap();
+    let set = dir.path().join("wear");
+    let out = host_sim(&[
+        os("fleet"),
+        os("degrade"),
+        os("--out"),
+        set.as_os_str(),
+        os("--healthy"),
+        os("1"),
+        os("--leak"),
+        os("1"),
+        os("--clog"),
+        os("0"),
+        os("--releases"),
+        os("6"),
+        os("--onset"),
+        os("2"),
+    ]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let db = dir.path().join("fleet.sqlite");
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "# locomotive: loco-07\nt_s,adc\n0.00,409\n0.01,abc\n").unwrap();
+    let out = host_sim(&[os("fleet"), os("ingest"), os("--db"), db.as_os_str(), set.as_os_str(), bad.as_os_str()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(3), "{err}");
+    assert!(err.contains("stored 12 releases (12 new)"), "{err}");
+    assert!(err.contains("bad.csv:4: column 2 is not a number"), "{err}");
+    let out = host_sim(&[os("fleet"), os("ingest"), os("--db"), db.as_os_str(), set.as_os_str()]);
+    assert!(out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("(0 new)"));
+    let out = host_sim(&[os("fleet"), os("status"), os("--db"), db.as_os_str()]);
+    assert!(out.status.success());
+    let text = String::from_utf8_lossy(&out.stdout);
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 2, "{text}");
+    assert!(lines[0].starts_with("loco-01  releases 6  latest normal"), "{text}");
+    let report = dir.path().join("report");
+    let out = host_sim(&[os("fleet"), os("report"), os("--db"), db.as_os_str(), os("--out"), report.as_os_str()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(std::fs::read_to_string(report.join("index.html")).unwrap().contains("loco-02"));
+    let parquet = dir.path().join("fleet.parquet");
+    let out = host_sim(&[os("fleet"), os("export"), os("--db"), db.as_os_str(), os("--out"), parquet.as_os_str()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("wrote 12 releases"));
+    assert!(std::fs::read(&parquet).unwrap().starts_with(b"PAR1"));
+    let missing = dir.path().join("none.sqlite");
+    let out = host_sim(&[os("fleet"), os("status"), os("--db"), missing.as_os_str()]);
+    assert_eq!(out.status.code(), Some(1));
+}

@@ -1,0 +1,265 @@
+//! The fleet history: an SQLite file (through `rusqlite`, SQLite compiled in, no server).
+//!
+//! # Schema
+//!
+//! One table, `releases`, one row per release of a locomotive (columns in [`SCHEMA`]). Its
+//! natural key is (`locomotive`, `source`, `origin`, `release_key`) under a UNIQUE constraint:
+//! the same release ingested again (same file, same release in it) updates its row in place
+//! (`INSERT … ON CONFLICT … DO UPDATE`) instead of adding one, so re-ingesting is idempotent,
+//! and a re-ingest after the monitor changed refreshes the verdicts.
+//!
+//! # Crashes and concurrency
+//!
+//! - Each input file is stored in one transaction ([`FleetDb::store_file`]): a crash or a bad
+//!   record mid-file leaves none of that file's rows and every earlier file's rows.
+//! - The database runs in WAL mode with `synchronous = NORMAL` (a commit survives a process
+//!   crash; only an OS crash may lose the last commits, never corrupt the file) and a busy
+//!   timeout ([`BUSY_TIMEOUT`]); writers take the write lock when the transaction begins
+//!   (`BEGIN IMMEDIATE`), so two ingests at once queue for it instead of failing with a
+//!   deadlock on lock upgrade.
+
+use crate::record::{ReleaseRecord, Source};
+use anyhow::{Context, Result};
+use pbm_io::error::FileError;
+use rusqlite::{params, Connection, OpenFlags, OptionalExtension, TransactionBehavior};
+use std::path::Path;
+use std::time::Duration;
+
+/// How long a writer waits for another's transaction before giving up.
+pub const BUSY_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// Version of the schema, kept in `PRAGMA user_version`.
+pub const SCHEMA_VERSION: i64 = 1;
+
+/// The tables (idempotent: run on every open).
+pub const SCHEMA: &str = "
+CREATE TABLE IF NOT EXISTS releases (
+    id             INTEGER PRIMARY KEY,
+    locomotive     TEXT    NOT NULL,
+    source         TEXT    NOT NULL CHECK (source IN ('trace', 'can')),
+    origin         TEXT    NOT NULL,
+    release_key    TEXT    NOT NULL,
+    release_no     INTEGER NOT NULL,
+    time_s         REAL,
+    verdict        TEXT    NOT NULL,
+    confidence_pct INTEGER CHECK (confidence_pct BETWEEN 0 AND 100),
+    no_diagnosis   TEXT,
+    orifice_mm     REAL,
+    leak_mm        REAL,
+    supply_bar_g   REAL,
+    label          TEXT,
+    ingested_at    TEXT    NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ', 'now')),
+    UNIQUE (locomotive, source, origin, release_key)
+);
+CREATE INDEX IF NOT EXISTS releases_by_loco ON releases (locomotive, release_no, time_s);
+";
+
+const UPSERT: &str = "
+INSERT INTO releases (locomotive, source, origin, release_key, release_no, time_s, verdict,
+                      confidence_pct, no_diagnosis, orifice_mm, leak_mm, supply_bar_g, label)
+VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)
+ON CONFLICT (locomotive, source, origin, release_key) DO UPDATE SET
+    release_no = excluded.release_no, time_s = excluded.time_s, verdict = excluded.verdict,
+    confidence_pct = excluded.confidence_pct, no_diagnosis = excluded.no_diagnosis,
+    orifice_mm = excluded.orifice_mm, leak_mm = excluded.leak_mm,
+    supply_bar_g = excluded.supply_bar_g, label = excluded.label,
+    ingested_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now')
+";
+
+/// An open fleet history.
+pub struct FleetDb {
+    conn: Connection,
+}
+
+/// What storing one file did.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Stored {
+    /// Releases written (new or updated).
+    pub releases: usize,
+    /// Of those, releases that were new.
+    pub new: usize,
+}
+
+/// A stored release (a row of `releases`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StoredRelease {
+    /// Locomotive name.
+    pub locomotive: String,
+    /// `trace` or `can`.
+    pub source: String,
+    /// Input file.
+    pub origin: String,
+    /// Release within the file.
+    pub release_key: String,
+    /// Position on the locomotive's timeline.
+    pub release_no: i64,
+    /// Time, s, when known.
+    pub time_s: Option<f64>,
+    /// Verdict label (a class, `cannot_diagnose` or `none`).
+    pub verdict: String,
+    /// Confidence of a named class, per cent.
+    pub confidence_pct: Option<i64>,
+    /// Why no class was named.
+    pub no_diagnosis: Option<String>,
+    /// Estimated release orifice, mm.
+    pub orifice_mm: Option<f64>,
+    /// Estimated leak, mm.
+    pub leak_mm: Option<f64>,
+    /// Estimated supply, bar g.
+    pub supply_bar_g: Option<f64>,
+    /// Label carried by the input.
+    pub label: Option<String>,
+}
+
+impl FleetDb {
+    /// Opens (creating if needed) the fleet history at `path`.
+    pub fn open(path: &Path) -> Result<Self> {
+        let conn = Connection::open_with_flags(
+            path,
+            OpenFlags::SQLITE_OPEN_READ_WRITE | OpenFlags::SQLITE_OPEN_CREATE | OpenFlags::SQLITE_OPEN_NO_MUTEX,
+        )
+        .with_context(|| format!("cannot open the fleet database {}", path.display()))?;
+        // The busy timeout comes first: switching to WAL itself needs a lock another process
+        // may hold.
+        conn.busy_timeout(BUSY_TIMEOUT)?;
+        let mode: String = conn
+            .query_row("PRAGMA journal_mode = WAL", [], |r| r.get(0))
+            .with_context(|| format!("{}: not a fleet database (cannot set WAL mode)", path.display()))?;
+        if !mode.eq_ignore_ascii_case("wal") {
+            anyhow::bail!("{}: the database refused WAL mode (journal mode {mode})", path.display());
+        }
+        conn.pragma_update(None, "synchronous", "NORMAL")?;
+        let version: i64 = conn.query_row("PRAGMA user_version", [], |r| r.get(0))?;
+        if version > SCHEMA_VERSION {
+            anyhow::bail!(
+                "{}: fleet database schema {version} is newer than this tool's ({SCHEMA_VERSION})",
+                path.display()
+            );
+        }
+        // Creating the schema is one immediate transaction, so two first opens do not race.
+        let tx = Self::begin(&conn)?;
+        tx.execute_batch(SCHEMA).with_context(|| format!("{}: not a fleet database", path.display()))?;
+        tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
+        tx.commit()?;
+        Ok(Self { conn })
+    }
+
+    fn begin(conn: &Connection) -> Result<rusqlite::Transaction<'_>> {
+        // `Transaction::new_unchecked` would allow nesting; a fresh immediate one is what we want.
+        rusqlite::Transaction::new_unchecked(conn, TransactionBehavior::Immediate)
+            .context("cannot start a database transaction")
+    }
+
+    /// Stores the releases of one input file in one transaction. The releases come as the
+    /// input is read: when one is an input error, nothing of this file is stored (the
+    /// transaction rolls back) and the error comes back as `Ok(Err(…))`; `Err` is a database
+    /// failure.
+    pub fn store_file(
+        &mut self,
+        releases: impl IntoIterator<Item = Result<ReleaseRecord, FileError>>,
+    ) -> Result<Result<Stored, FileError>> {
+        let tx = Self::begin(&self.conn)?;
+        let mut stored = Stored::default();
+        {
+            let mut exists = tx.prepare_cached(
+                "SELECT 1 FROM releases WHERE locomotive = ?1 AND source = ?2 AND origin = ?3 AND release_key = ?4",
+            )?;
+            let mut upsert = tx.prepare_cached(UPSERT)?;
+            for r in releases {
+                let r = match r {
+                    Ok(r) => r,
+                    // Dropping the transaction rolls it back.
+                    Err(e) => return Ok(Err(e)),
+                };
+                let key = params![r.locomotive, r.source.label(), r.origin, r.release_key];
+                let known = exists.query_row(key, |_| Ok(())).optional()?.is_some();
+                upsert.execute(params![
+                    r.locomotive,
+                    r.source.label(),
+                    r.origin,
+                    r.release_key,
+                    r.release_no,
+                    r.time_s,
+                    r.verdict_label(),
+                    r.confidence_pct(),
+                    r.no_diagnosis(),
+                    r.orifice_mm,
+                    r.leak_mm,
+                    r.supply_bar_g,
+                    r.label,
+                ])?;
+                stored.releases += 1;
+                stored.new += usize::from(!known);
+            }
+        }
+        tx.commit().context("cannot commit to the fleet database")?;
+        Ok(Ok(stored))
+    }
+
+    /// Number of stored releases.
+    pub fn count(&self) -> Result<i64> {
+        Ok(self.conn.query_row("SELECT count(*) FROM releases", [], |r| r.get(0))?)
+    }
+
+    /// The locomotives, sorted by name.
+    pub fn locomotives(&self) -> Result<Vec<String>> {
+        let mut s = self.conn.prepare("SELECT DISTINCT locomotive FROM releases ORDER BY locomotive")?;
+        let rows = s.query_map([], |r| r.get(0))?;
+        Ok(rows.collect::<rusqlite::Result<_>>()?)
+    }
+
+    /// The releases of one locomotive in timeline order (release number, then time, then
+    /// source and origin so the order is total and stable).
+    pub fn releases(&self, locomotive: &str) -> Result<Vec<StoredRelease>> {
+        let mut s = self.conn.prepare_cached(
+            "SELECT locomotive, source, origin, release_key, release_no, time_s, verdict, confidence_pct,
+                    no_diagnosis, orifice_mm, leak_mm, supply_bar_g, label
+             FROM releases WHERE locomotive = ?1
+             ORDER BY release_no, time_s, source, origin, release_key",
+        )?;
+        let rows = s.query_map([locomotive], |r| {
+            Ok(StoredRelease {
+                locomotive: r.get(0)?,
+                source: r.get(1)?,
+                origin: r.get(2)?,
+                release_key: r.get(3)?,
+                release_no: r.get(4)?,
+                time_s: r.get(5)?,
+                verdict: r.get(6)?,
+                confidence_pct: r.get(7)?,
+                no_diagnosis: r.get(8)?,
+                orifice_mm: r.get(9)?,
+                leak_mm: r.get(10)?,
+                supply_bar_g: r.get(11)?,
+                label: r.get(12)?,
+            })
+        })?;
+        Ok(rows.collect::<rusqlite::Result<_>>()?)
+    }
+
+    /// SQLite's own consistency check (`PRAGMA integrity_check`): `ok` or what is wrong.
+    pub fn integrity_check(&self) -> Result<String> {
+        Ok(self.conn.query_row("PRAGMA integrity_check", [], |r| r.get(0))?)
+    }
+
+    /// Rows whose natural key appears more than once (0 unless the UNIQUE constraint is gone).
+    pub fn duplicate_keys(&self) -> Result<i64> {
+        Ok(self.conn.query_row(
+            "SELECT count(*) FROM (SELECT 1 FROM releases GROUP BY locomotive, source, origin, release_key
+                                   HAVING count(*) > 1)",
+            [],
+            |r| r.get(0),
+        )?)
+    }
+
+    /// Moves the write-ahead log into the main file (for a size measurement or a copy).
+    pub fn checkpoint(&self) -> Result<()> {
+        self.conn.query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |_| Ok(()))?;
+        Ok(())
+    }
+}
+
+/// Whether `s` names a source the database stores.
+pub fn source_of(s: &str) -> Option<Source> {
+    [Source::Trace, Source::Can].into_iter().find(|x| x.label() == s)
+}
