@@ -122,9 +122,25 @@ impl FleetDb {
         // The busy timeout comes first: switching to WAL itself needs a lock another process
         // may hold.
         conn.busy_timeout(BUSY_TIMEOUT)?;
-        let mode: String = conn
-            .query_row("PRAGMA journal_mode = WAL", [], |r| r.get(0))
-            .with_context(|| format!("{}: not a fleet database (cannot set WAL mode)", path.display()))?;
+        // Two first opens of a new file race for the lock that switching to WAL takes, and
+        // SQLite answers the loser with "busy" at once, without calling the busy handler (its
+        // deadlock avoidance): wait and retry here, within the same timeout (a CI run found
+        // two threads' first opens failing).
+        let deadline = std::time::Instant::now() + BUSY_TIMEOUT;
+        let mode: String = loop {
+            match conn.query_row("PRAGMA journal_mode = WAL", [], |r| r.get(0)) {
+                Ok(mode) => break mode,
+                Err(rusqlite::Error::SqliteFailure(e, _))
+                    if e.code == rusqlite::ErrorCode::DatabaseBusy && std::time::Instant::now() < deadline =>
+                {
+                    std::thread::sleep(std::time::Duration::from_millis(20));
+                }
+                Err(e) => {
+                    return Err(e)
+                        .with_context(|| format!("{}: not a fleet database (cannot set WAL mode)", path.display()))
+                }
+            }
+        };
         if !mode.eq_ignore_ascii_case("wal") {
             anyhow::bail!("{}: the database refused WAL mode (journal mode {mode})", path.display());
         }

@@ -296,3 +296,24 @@ fn the_parquet_export_holds_every_release_with_its_nulls() {
     assert_eq!(trace.get_double(9).unwrap(), 1.25);
     assert_eq!(trace.get_string(6).unwrap(), "none");
 }
+
+/// Several first opens of a new database at once all succeed: switching a new file to WAL
+/// takes a lock, and SQLite answers the losers "busy" without waiting (a CI run found two
+/// threads' first opens failing).
+#[test]
+fn many_first_opens_of_a_new_database_at_once_all_succeed() {
+    for round in 0..20 {
+        let dir = tempfile::tempdir().unwrap();
+        let db_path = dir.path().join("fleet.sqlite");
+        let handles: Vec<_> = (0..8)
+            .map(|_| {
+                let db_path = db_path.clone();
+                std::thread::spawn(move || FleetDb::open(&db_path).map(|_| ()))
+            })
+            .collect();
+        for h in handles {
+            let opened = h.join().expect("no panic");
+            assert!(opened.is_ok(), "round {round}: {opened:?}");
+        }
+    }
+}
