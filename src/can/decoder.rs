@@ -447,8 +447,9 @@ impl Decoder {
 
     /// Accepts a status frame that continues session `s` (`c`: how, from [`continuation`]).
     fn accept_status(&mut self, mut s: Session, now: u64, link: &StatusLink, c: Continues, rec: &mut Reception) {
-        let d = link.counter.wrapping_sub(s.counter) % COUNTER_MOD;
-        rec.lost_status = d.saturating_sub(1).saturating_sub(s.overdue_reported);
+        let d = c.periods;
+        rec.lost_status =
+            u16::try_from(d.saturating_sub(1)).unwrap_or(u16::MAX).saturating_sub(s.overdue_reported);
         s.overdue_reported = 0;
         let release = link.identity.release & 0x3F;
         if c.undo_release {
@@ -482,8 +483,8 @@ impl Decoder {
         }
         rec.lost_fault_reports = lost;
         // The session clock: when a frame with this counter was due.
-        let due = s.anchor_us.saturating_add(i64::from(d) * STATUS_PERIOD_US as i64);
-        let creep = drift(u64::from(d) * STATUS_PERIOD_US) as i64;
+        let due = s.anchor_us.saturating_add((d * STATUS_PERIOD_US) as i64);
+        let creep = drift(d * STATUS_PERIOD_US) as i64;
         let here = diff(now, 0);
         let anchor = match c.phase {
             // Within the tolerance: the earliest receive time the frames imply.
@@ -744,6 +745,9 @@ enum Phase {
 /// How a status frame continues a session.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Continues {
+    /// Heartbeat periods since the session's last accepted one (the counter's advance, beyond
+    /// 4095 after a silence longer than the counter's range).
+    periods: u64,
     phase: Phase,
     /// It goes back to the release before a rise that rested on one heartbeat.
     undo_release: bool,
@@ -764,8 +768,19 @@ fn same_phase(s: &Session, now: u64, link: &StatusLink) -> bool {
 /// many seconds later as the counter advanced, release not going back?
 fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<Continues, FrameError> {
     let gap = diff(now, s.at_us);
-    let d = link.counter.wrapping_sub(s.counter) % COUNTER_MOD;
-    if d == 0 || d >= COUNTER_MOD / 2 {
+    let mut d = u64::from(link.counter.wrapping_sub(s.counter) % COUNTER_MOD);
+    let half_range = i64::from(COUNTER_MOD / 2) * STATUS_PERIOD_US as i64;
+    if gap >= half_range {
+        // After a silence of half the counter's range or more (a receiver that heard nothing
+        // for 34 min while the sender ran on) the counter alone cannot say how many periods
+        // passed: the silence says it, and the counter must agree with it modulo 4096 (the
+        // timing test below). Without this a genuine sender stayed locked out for good.
+        let periods = (gap + STATUS_PERIOD_US as i64 / 2) / STATUS_PERIOD_US as i64;
+        let modulus = i64::from(COUNTER_MOD);
+        let wraps = (periods - d as i64 + modulus / 2).div_euclid(modulus).max(0);
+        d += wraps.unsigned_abs() * u64::from(COUNTER_MOD);
+    }
+    if d == 0 || (gap < half_range && d >= u64::from(COUNTER_MOD / 2)) {
         // Not newer: a copy right after (a flood) or a repetition of an older frame.
         if gap < (STATUS_PERIOD_US - TOLERANCE_US) as i64 {
             return Err(FrameError::RateExceeded { gap_ms: ms(gap.max(0)) as u32 });
@@ -775,7 +790,7 @@ fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<Continues, F
     // Late: more than the tolerance (and clock drift) after it was due, unless the heartbeat
     // before showed the same lasting step. Early: up to half a period is a session clock set by
     // a delayed frame, or a latency that fell; more is no genuine frame.
-    let span = u64::from(d) * STATUS_PERIOD_US;
+    let span = d * STATUS_PERIOD_US;
     let off = diff(now, 0).saturating_sub(s.anchor_us.saturating_add(span as i64));
     let tol = (TOLERANCE_US + drift(span)) as i64;
     let phase = if off > tol {
@@ -803,5 +818,5 @@ fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<Continues, F
             return Err(FrameError::WrongRelease { expected: s.identity.release, got: link.identity.release });
         }
     }
-    Ok(Continues { phase, undo_release })
+    Ok(Continues { periods: d, phase, undo_release })
 }
