@@ -448,8 +448,7 @@ impl Decoder {
     /// Accepts a status frame that continues session `s` (`c`: how, from [`continuation`]).
     fn accept_status(&mut self, mut s: Session, now: u64, link: &StatusLink, c: Continues, rec: &mut Reception) {
         let d = c.periods;
-        rec.lost_status =
-            u16::try_from(d.saturating_sub(1)).unwrap_or(u16::MAX).saturating_sub(s.overdue_reported);
+        rec.lost_status = u16::try_from(d.saturating_sub(1)).unwrap_or(u16::MAX).saturating_sub(s.overdue_reported);
         s.overdue_reported = 0;
         let release = link.identity.release & 0x3F;
         if c.undo_release {

@@ -543,7 +543,8 @@ impl SweepCase {
     /// The audit named a mechanism that is not the hidden one (alone or in a pair).
     pub fn wrong_name(&self) -> bool {
         // `none` and `unexplained` name nothing.
-        !matches!(self.cause.as_str(), "none" | "unexplained") && self.cause.split('+').any(|c| c != self.truth.0.name())
+        !matches!(self.cause.as_str(), "none" | "unexplained")
+            && self.cause.split('+').any(|c| c != self.truth.0.name())
     }
     /// [`Self::named_right`] and the extended NMSE at least 5× below the base's.
     pub fn hit(&self) -> bool {
