@@ -448,8 +448,7 @@ impl Decoder {
     /// Accepts a status frame that continues session `s` (`c`: how, from [`continuation`]).
     fn accept_status(&mut self, mut s: Session, now: u64, link: &StatusLink, c: Continues, rec: &mut Reception) {
         let d = c.periods;
-        rec.lost_status =
-            u16::try_from(d.saturating_sub(1)).unwrap_or(u16::MAX).saturating_sub(s.overdue_reported);
+        rec.lost_status = u16::try_from(d.saturating_sub(1)).unwrap_or(u16::MAX).saturating_sub(s.overdue_reported);
         s.overdue_reported = 0;
         let release = link.identity.release & 0x3F;
         if c.undo_release {
@@ -586,7 +585,14 @@ impl Decoder {
                 // (Less the latency steps the receiver follows: a latency that fell between two
                 // repeats brings them closer.)
                 let min_gap = if repeat { FAULT_REPEAT_US - MAX_LATENCY_STEP_US } else { FAULT_MIN_GAP_US };
-                if gap < (min_gap - TOLERANCE_US) as i64 {
+                // A short gap after a delayed report is no flood when the sender's own times say
+                // the two were sent far enough apart (this one's timing against the release start
+                // is still checked below): the report after one delayed within the tolerance was
+                // flagged (second independent attack test). A copy or a flood carries the same
+                // time.
+                let sent_apart =
+                    f.release == identity.release && tau > f.tau && u64::from(tau - f.tau) * TAU_STEP_US >= min_gap;
+                if gap < (min_gap - TOLERANCE_US) as i64 && !sent_apart {
                     return Err(FrameError::RateExceeded { gap_ms: ms(gap.max(0)) as u32 });
                 }
                 if f.release == identity.release {
