@@ -1092,3 +1092,37 @@ fn a_receiver_outage_longer_than_half_the_counter_range_resynchronises() {
         assert!(d.receive(t, &shifted).result.is_err(), "outage {outage_s} s: an old heartbeat after the silence");
     }
 }
+
+/// A fault report delayed by up to the tolerance (90 ms) is accepted, and so is the next one,
+/// which now arrives 10 ms after it: the sender's own times say the two were sent 100 ms apart
+/// (the second independent attack test found the next one flagged as a flood). A copy of a
+/// report right after it is still a flood.
+#[test]
+fn the_report_after_one_delayed_within_the_tolerance_is_accepted() {
+    // The leak estimate changes every 100 ms from 2.3 s to 4 s: a report every 100 ms.
+    let g = stream_of(6, |n| {
+        (n >= 230).then(|| FaultReport { leak_um: 800 + (n.min(400) / 10) as u16, ..example_fault() })
+    });
+    let reports: Vec<usize> = (0..g.len()).filter(|&i| !is_status(&g[i].1)).collect();
+    // Every report that is followed by another within 150 ms.
+    let mut tried = 0;
+    for w in reports.windows(2) {
+        let (a, b) = (w[0], w[1]);
+        if g[b].0 - g[a].0 > 150_000 {
+            continue;
+        }
+        tried += 1;
+        let mut s = g.clone();
+        s[a].0 += 90_000;
+        s.sort_by_key(|(t, _)| *t);
+        let mut d = Decoder::new();
+        for (t, f) in &s {
+            let r = d.receive(*t, f);
+            assert!(r.result.is_ok(), "report {a} delayed 90 ms, frame at {t}: {r:?}");
+        }
+        let mut copy = g.clone();
+        copy.insert(a + 1, (g[a].0 + 10_000, g[a].1));
+        assert_eq!(flags(&copy).iter().flatten().count(), 1, "a copy 10 ms after report {a}");
+    }
+    assert!(tried >= 2, "{tried}");
+}

@@ -482,8 +482,9 @@ impl Decoder {
         }
         rec.lost_fault_reports = lost;
         // The session clock: when a frame with this counter was due.
-        let due = s.anchor_us.saturating_add((d * STATUS_PERIOD_US) as i64);
-        let creep = drift(d * STATUS_PERIOD_US) as i64;
+        let span = d.saturating_mul(STATUS_PERIOD_US);
+        let due = s.anchor_us.saturating_add(i64::try_from(span).unwrap_or(i64::MAX));
+        let creep = i64::try_from(drift(span)).unwrap_or(i64::MAX);
         let here = diff(now, 0);
         let anchor = match c.phase {
             // Within the tolerance: the earliest receive time the frames imply.
@@ -585,7 +586,14 @@ impl Decoder {
                 // (Less the latency steps the receiver follows: a latency that fell between two
                 // repeats brings them closer.)
                 let min_gap = if repeat { FAULT_REPEAT_US - MAX_LATENCY_STEP_US } else { FAULT_MIN_GAP_US };
-                if gap < (min_gap - TOLERANCE_US) as i64 {
+                // A short gap after a delayed report is no flood when the sender's own times say
+                // the two were sent far enough apart (this one's timing against the release start
+                // is still checked below): the report after one delayed within the tolerance was
+                // flagged (second independent attack test). A copy or a flood carries the same
+                // time.
+                let sent_apart =
+                    f.release == identity.release && tau > f.tau && u64::from(tau - f.tau) * TAU_STEP_US >= min_gap;
+                if gap < (min_gap - TOLERANCE_US) as i64 && !sent_apart {
                     return Err(FrameError::RateExceeded { gap_ms: ms(gap.max(0)) as u32 });
                 }
                 if f.release == identity.release {
@@ -774,10 +782,10 @@ fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<Continues, F
         // for 34 min while the sender ran on) the counter alone cannot say how many periods
         // passed: the silence says it, and the counter must agree with it modulo 4096 (the
         // timing test below). Without this a genuine sender stayed locked out for good.
-        let periods = (gap + STATUS_PERIOD_US as i64 / 2) / STATUS_PERIOD_US as i64;
+        let periods = gap.saturating_add(STATUS_PERIOD_US as i64 / 2) / STATUS_PERIOD_US as i64;
         let modulus = i64::from(COUNTER_MOD);
-        let wraps = (periods - d as i64 + modulus / 2).div_euclid(modulus).max(0);
-        d += wraps.unsigned_abs() * u64::from(COUNTER_MOD);
+        let wraps = periods.saturating_sub(d as i64).saturating_add(modulus / 2).div_euclid(modulus).max(0);
+        d = d.saturating_add(wraps.unsigned_abs().saturating_mul(u64::from(COUNTER_MOD)));
     }
     if d == 0 || (gap < half_range && d >= u64::from(COUNTER_MOD / 2)) {
         // Not newer: a copy right after (a flood) or a repetition of an older frame.
@@ -789,8 +797,8 @@ fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<Continues, F
     // Late: more than the tolerance (and clock drift) after it was due, unless the heartbeat
     // before showed the same lasting step. Early: up to half a period is a session clock set by
     // a delayed frame, or a latency that fell; more is no genuine frame.
-    let span = d * STATUS_PERIOD_US;
-    let off = diff(now, 0).saturating_sub(s.anchor_us.saturating_add(span as i64));
+    let span = d.saturating_mul(STATUS_PERIOD_US);
+    let off = diff(now, 0).saturating_sub(s.anchor_us.saturating_add(i64::try_from(span).unwrap_or(i64::MAX)));
     let tol = (TOLERANCE_US + drift(span)) as i64;
     let phase = if off > tol {
         if same_phase(s, now, link) && s.lag_us.saturating_add(off) <= MAX_LATENCY_STEP_US as i64 {
