@@ -85,6 +85,8 @@ fn fake(origin: &str, k: i64) -> ReleaseRecord {
         leak_mm: Some(0.0),
         supply_bar_g: Some(7.7),
         label: None,
+        content_hash: None,
+        numbered: false,
     }
 }
 
