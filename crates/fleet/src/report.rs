@@ -204,18 +204,11 @@ fn fmt_opt(v: Option<f64>, decimals: usize) -> String {
     v.map_or_else(|| "–".to_owned(), |x| format!("{x:.decimals$}"))
 }
 
-/// An HTML id for a locomotive's section, unique on the page: its letters and digits (other
-/// characters written as `-XX` hex, so `loco 7` and `loco-7` differ), with a counter on the
-/// rare remaining clash.
+/// An HTML id for a locomotive's section, unique on the page: `loco-` and the name's letters
+/// and digits, with `-2`, `-3`, … when names that differ only in other characters (`loco 7`,
+/// `loco-7`) would share it.
 fn unique_id(name: &str, taken: &mut std::collections::HashSet<String>) -> String {
-    let mut id = String::from("loco-");
-    for c in name.chars() {
-        if c.is_ascii_alphanumeric() {
-            id.push(c);
-        } else {
-            let _ = write!(id, "-{:x}", u32::from(c));
-        }
-    }
+    let id = format!("loco-{}", name.chars().filter(char::is_ascii_alphanumeric).collect::<String>());
     let mut candidate = id.clone();
     let mut n = 2;
     while !taken.insert(candidate.clone()) {

@@ -124,7 +124,8 @@ pub struct WarningRule {
     /// [`SUPPLY_SETTING_TOLERANCE_BAR`]).
     pub min_shift: [f64; 3],
     /// A raised warning clears after this many consecutive followed releases back at the
-    /// baseline (none of them would raise the cumulative sum); the sum then restarts from 0.
+    /// baseline (none of them shifted: each within [`SHIFTED_SIGMA`] σ of the baseline level,
+    /// beyond the allowance); the sum then restarts from 0.
     pub clear_after: usize,
 }
 
@@ -194,6 +195,10 @@ pub enum EvidenceKind {
     Intermittent,
 }
 
+/// A release counts as shifted when it lies this many σ beyond the allowance toward the edge
+/// (outside the baseline's ± 2 σ band).
+pub const SHIFTED_SIGMA: f64 = 2.0;
+
 /// Below this fraction of shifted releases since the onset, the evidence is intermittent.
 pub const INTERMITTENT_FRACTION: f64 = 0.6;
 
@@ -204,7 +209,8 @@ pub struct Evidence {
     pub kind: EvidenceKind,
     /// Followed releases from the onset to the end.
     pub releases: usize,
-    /// Of those, releases shifted toward the edge (each one raised the cumulative sum).
+    /// Of those, releases shifted toward the edge (more than [`SHIFTED_SIGMA`] beyond the
+    /// allowance).
     pub shifted: usize,
     /// Mean shift of the shifted releases from the baseline level (parameter unit, signed).
     pub shift: f64,
@@ -212,8 +218,8 @@ pub struct Evidence {
     pub slope: f64,
     /// Its standard error (`NaN` with fewer than 3 releases).
     pub slope_se: f64,
-    /// Release number where a step model puts the jump (the first release of the higher
-    /// level); meaningful for [`EvidenceKind::Step`].
+    /// Release number of the first shifted release (where a step happened); meaningful for
+    /// [`EvidenceKind::Step`].
     pub step_release_no: i64,
 }
 
@@ -305,7 +311,9 @@ pub fn track(records: &[ReleaseRecord], p: Parameter, rule: &WarningRule) -> (Op
             onset_release_no: records[with[onset].0].release_no,
             baseline: b,
             value: v,
-            evidence: evidence(records, &with[onset..=end], p, &b, rule),
+            // The evidence is what the estimates did while shifted: a cleared warning's calm
+            // releases at the end are left out.
+            evidence: evidence(records, &with[onset..=if cleared { end.saturating_sub(rule.clear_after).max(onset) } else { end }], p, &b, rule),
             cleared_release_no: cleared.then(|| records[with[end].0].release_no),
         }
     };
@@ -323,7 +331,7 @@ pub fn track(records: &[ReleaseRecord], p: Parameter, rule: &WarningRule) -> (Op
                 }
             }
             Some((alarm, onset)) => {
-                calm = if inc <= 0.0 { calm + 1 } else { 0 };
+                calm = if excess(v) <= SHIFTED_SIGMA { calm + 1 } else { 0 };
                 if calm >= rule.clear_after {
                     out.push(finish(alarm, onset, j, true));
                     active = None;
@@ -346,7 +354,7 @@ fn evidence(records: &[ReleaseRecord], pts: &[(usize, f64)], p: Parameter, b: &B
     let shifted: Vec<f64> = pts
         .iter()
         .map(|&(_, v)| v)
-        .filter(|&v| (p.direction() * (v - b.mean) - allowance) / b.sigma > rule.k)
+        .filter(|&v| (p.direction() * (v - b.mean) - allowance) / b.sigma > SHIFTED_SIGMA)
         .collect();
     let shift = if shifted.is_empty() { 0.0 } else { shifted.iter().map(|v| v - b.mean).sum::<f64>() / shifted.len() as f64 };
     let xy: Vec<(f64, f64)> = pts.iter().map(|&(i, v)| (records[i].release_no as f64, v)).collect();
@@ -358,7 +366,7 @@ fn evidence(records: &[ReleaseRecord], pts: &[(usize, f64)], p: Parameter, b: &B
         let my = xy.iter().map(|p| p.1).sum::<f64>() / n as f64;
         xy.iter().map(|p| (p.1 - (my + slope * (p.0 - mx))).powi(2)).sum::<f64>()
     };
-    let (sse_step, split) = (1..n)
+    let (sse_step, _) = (1..n)
         .map(|m| {
             let sse = |part: &[(f64, f64)]| {
                 let mean = part.iter().map(|p| p.1).sum::<f64>() / part.len() as f64;
@@ -367,12 +375,15 @@ fn evidence(records: &[ReleaseRecord], pts: &[(usize, f64)], p: Parameter, b: &B
             (sse(&xy[..m]) + sse(&xy[m..]), m)
         })
         .fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a });
-    // Where the step is: the best split when there is one, else the onset.
-    let step_release_no = xy.get(split).map_or(0, |p| p.0 as i64);
-    let kind = if n >= 6 && (shifted.len() as f64) < INTERMITTENT_FRACTION * n as f64 {
-        EvidenceKind::Intermittent
-    } else if n >= 5 && slope * p.direction() > 0.0 && slope.abs() >= 2.0 * slope_se && sse_line <= sse_step {
+    // Where the step is: the first shifted release.
+    let step_release_no = pts
+        .iter()
+        .find(|&&(_, v)| (p.direction() * (v - b.mean) - allowance) / b.sigma > SHIFTED_SIGMA)
+        .map_or_else(|| xy.first().map_or(0, |p| p.0 as i64), |&(i, _)| records[i].release_no);
+    let kind = if n >= 5 && slope * p.direction() > 0.0 && slope.abs() >= 2.0 * slope_se && sse_line <= sse_step {
         EvidenceKind::Drifting
+    } else if n >= 6 && (shifted.len() as f64) < INTERMITTENT_FRACTION * n as f64 {
+        EvidenceKind::Intermittent
     } else {
         EvidenceKind::Step
     };
