@@ -218,8 +218,8 @@ pub struct Evidence {
     pub slope: f64,
     /// Its standard error (`NaN` with fewer than 3 releases).
     pub slope_se: f64,
-    /// Release number of the first shifted release (where a step happened); meaningful for
-    /// [`EvidenceKind::Step`].
+    /// Release number where the step happened: the first of three shifted releases in a row
+    /// (else the first shifted one); meaningful for [`EvidenceKind::Step`].
     pub step_release_no: i64,
 }
 
@@ -375,11 +375,16 @@ fn evidence(records: &[ReleaseRecord], pts: &[(usize, f64)], p: Parameter, b: &B
             (sse(&xy[..m]) + sse(&xy[m..]), m)
         })
         .fold((f64::INFINITY, 0), |a, b| if b.0 < a.0 { b } else { a });
-    // Where the step is: the first shifted release.
-    let step_release_no = pts
-        .iter()
-        .find(|&&(_, v)| (p.direction() * (v - b.mean) - allowance) / b.sigma > SHIFTED_SIGMA)
-        .map_or_else(|| xy.first().map_or(0, |p| p.0 as i64), |&(i, _)| records[i].release_no);
+    // Where the step is: the first of three shifted releases in a row (a lone outlier of the
+    // healthy tail is not the step), else the first shifted release, else the onset.
+    let is_shifted: Vec<bool> =
+        pts.iter().map(|&(_, v)| (p.direction() * (v - b.mean) - allowance) / b.sigma > SHIFTED_SIGMA).collect();
+    let first = is_shifted
+        .windows(3)
+        .position(|w| w.iter().all(|&x| x))
+        .or_else(|| is_shifted.iter().position(|&x| x))
+        .unwrap_or(0);
+    let step_release_no = pts.get(first).map_or(0, |&(i, _)| records[i].release_no);
     let kind = if n >= 5 && slope * p.direction() > 0.0 && slope.abs() >= 2.0 * slope_se && sse_line <= sse_step {
         EvidenceKind::Drifting
     } else if n >= 6 && (shifted.len() as f64) < INTERMITTENT_FRACTION * n as f64 {
