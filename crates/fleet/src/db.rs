@@ -164,7 +164,8 @@ impl FleetDb {
                 r.get::<_, i64>(0)
             })? > 0;
         if !has_hash {
-            tx.execute_batch(MIGRATE_2).with_context(|| format!("{}: cannot migrate the fleet database", path.display()))?;
+            tx.execute_batch(MIGRATE_2)
+                .with_context(|| format!("{}: cannot migrate the fleet database", path.display()))?;
         }
         tx.execute_batch(INDEX_2)?;
         tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
@@ -193,9 +194,8 @@ impl FleetDb {
                 "SELECT 1 FROM releases WHERE locomotive = ?1 AND source = ?2 AND origin = ?3 AND release_key = ?4",
             )?;
             let mut upsert = tx.prepare_cached(UPSERT)?;
-            let mut same_samples = tx.prepare_cached(
-                "SELECT origin FROM releases WHERE locomotive = ?1 AND content_hash = ?2 LIMIT 1",
-            )?;
+            let mut same_samples =
+                tx.prepare_cached("SELECT origin FROM releases WHERE locomotive = ?1 AND content_hash = ?2 LIMIT 1")?;
             let mut same_number = tx.prepare_cached(
                 "SELECT origin FROM releases WHERE locomotive = ?1 AND source = ?2 AND release_no = ?3 AND numbered = 1 LIMIT 1",
             )?;
@@ -215,9 +215,13 @@ impl FleetDb {
                     let why = match same {
                         Some(o) => Some(format!("same samples as {o}")),
                         None if r.numbered => same_number
-                            .query_row(params![r.locomotive, r.source.label(), r.release_no], |row| row.get::<_, String>(0))
+                            .query_row(params![r.locomotive, r.source.label(), r.release_no], |row| {
+                                row.get::<_, String>(0)
+                            })
                             .optional()?
-                            .map(|o| format!("release {} of {} is already stored from {o}", r.release_no, r.locomotive)),
+                            .map(|o| {
+                                format!("release {} of {} is already stored from {o}", r.release_no, r.locomotive)
+                            }),
                         None => None,
                     };
                     if let Some(why) = why {

@@ -287,9 +287,7 @@ pub fn page(db: &FleetDb, rule: &WarningRule) -> Result<(Page, Vec<String>)> {
         per_loco.push((s, records));
     }
     if statuses.is_empty() {
-        fleet.push(Block::Para(
-            "Nothing stored yet: no release has been ingested into this fleet history.".to_owned(),
-        ));
+        fleet.push(Block::Para("Nothing stored yet: no release has been ingested into this fleet history.".to_owned()));
     } else {
         fleet.push(Block::Table(table));
     }

@@ -68,7 +68,8 @@ impl Undiagnosed {
             self.count, self.since, self.first_release_no, self.last_release_no
         );
         if self.sensor {
-            let kind = self.reason.strip_prefix("sensor fault (").and_then(|r| r.strip_suffix(')')).unwrap_or(&self.reason);
+            let kind =
+                self.reason.strip_prefix("sensor fault (").and_then(|r| r.strip_suffix(')')).unwrap_or(&self.reason);
             format!("sensor: {kind} {span} — the transducer, not the brake; their estimates are not followed")
         } else {
             format!("not diagnosed: {} {span}; their estimates are not followed", self.reason)

@@ -19,10 +19,19 @@
 //!   standard deviation rather than median and MAD: the healthy leak estimate is mostly exactly
 //!   0 with a tail of small values, for which the MAD is 0 and would call every tail value an
 //!   alarm.
-//! - **statistic**: z = ±(x − μ)/σ, clipped to ±[`WarningRule::z_clip`] so one wild release
-//!   cannot raise an alarm alone; S₀ = 0, Sₙ = max(0, Sₙ₋₁ + zₙ − k).
-//! - **alarm**: the first release with Sₙ > h. Defaults k = 0.5 (tuned to a shift of 1 σ),
-//!   h = 12.
+//! - **followed releases**: only releases the monitor named a class for
+//!   ([`ReleaseRecord::diagnosed`]); a release declined for a sensor fault, as unfamiliar or too
+//!   short, or closed without a diagnosis, is not evidence about the brake.
+//! - **statistic**: z = (±(x − μ) − a)/σ with the physical allowance a =
+//!   [`WarningRule::min_shift`] (supply: the regulator's setting tolerance
+//!   [`SUPPLY_SETTING_TOLERANCE_BAR`]; leak and orifice 0), clipped to ±[`WarningRule::z_clip`]
+//!   so one wild release cannot raise an alarm alone; S₀ = 0, Sₙ = max(0, Sₙ₋₁ + zₙ − k).
+//! - **alarm**: a release with Sₙ > h. Defaults k = 0.5 (tuned to a shift of 1 σ), h = 12.
+//! - **evidence**: from the onset (first release of the run of S > 0 that ended in the alarm):
+//!   drifting, step or intermittent ([`EvidenceKind`]).
+//! - **clearing**: after [`WarningRule::clear_after`] = 10 consecutive followed releases inside
+//!   the baseline band (none more than [`SHIFTED_SIGMA`] σ beyond the allowance toward the
+//!   edge) the warning clears and S restarts from 0; a later shift raises a new warning.
 //!
 //! False-alarm rate. For independent Gaussian estimates with a known baseline the in-control
 //! average run length of this CUSUM (Siegmund's approximation, [`arl0`]) is ≈ 10⁶ releases per
@@ -254,7 +263,9 @@ impl Warning {
         let se = if e.slope_se.is_finite() { format!(" ± {:.4}", e.slope_se) } else { String::new() };
         let trend = format!("trend {:+.4}{se} {}/release", e.slope, p.unit());
         let what = match e.kind {
-            EvidenceKind::Drifting => format!("{} drifting toward {edge} since release {}", p.name(), self.onset_release_no),
+            EvidenceKind::Drifting => {
+                format!("{} drifting toward {edge} since release {}", p.name(), self.onset_release_no)
+            }
             EvidenceKind::Step => format!(
                 "{} stepped {:+.3} {} toward {edge} at release {}",
                 p.name(),
@@ -288,7 +299,11 @@ pub fn followed(records: &[ReleaseRecord], p: Parameter) -> Vec<(usize, f64)> {
 /// The CUSUM of one parameter over `records` (timeline order): its baseline, its path (per
 /// followed release after the baseline: index in `records`, Sₙ; the sum restarts at 0 when a
 /// warning clears) and every warning raised, in order.
-pub fn track(records: &[ReleaseRecord], p: Parameter, rule: &WarningRule) -> (Option<Baseline>, Vec<(usize, f64)>, Vec<Warning>) {
+pub fn track(
+    records: &[ReleaseRecord],
+    p: Parameter,
+    rule: &WarningRule,
+) -> (Option<Baseline>, Vec<(usize, f64)>, Vec<Warning>) {
     let with = followed(records, p);
     let values: Vec<f64> = with.iter().map(|&(_, v)| v).collect();
     let Some(b) = baseline(&values, p, rule) else { return (None, Vec::new(), Vec::new()) };
@@ -313,7 +328,13 @@ pub fn track(records: &[ReleaseRecord], p: Parameter, rule: &WarningRule) -> (Op
             value: v,
             // The evidence is what the estimates did while shifted: a cleared warning's calm
             // releases at the end are left out.
-            evidence: evidence(records, &with[onset..=if cleared { end.saturating_sub(rule.clear_after).max(onset) } else { end }], p, &b, rule),
+            evidence: evidence(
+                records,
+                &with[onset..=if cleared { end.saturating_sub(rule.clear_after).max(onset) } else { end }],
+                p,
+                &b,
+                rule,
+            ),
             cleared_release_no: cleared.then(|| records[with[end].0].release_no),
         }
     };
@@ -349,14 +370,21 @@ pub fn track(records: &[ReleaseRecord], p: Parameter, rule: &WarningRule) -> (Op
 }
 
 /// What the followed releases `pts` (onset to end of a warning) show.
-fn evidence(records: &[ReleaseRecord], pts: &[(usize, f64)], p: Parameter, b: &Baseline, rule: &WarningRule) -> Evidence {
+fn evidence(
+    records: &[ReleaseRecord],
+    pts: &[(usize, f64)],
+    p: Parameter,
+    b: &Baseline,
+    rule: &WarningRule,
+) -> Evidence {
     let allowance = rule.min_shift[p.index()];
     let shifted: Vec<f64> = pts
         .iter()
         .map(|&(_, v)| v)
         .filter(|&v| (p.direction() * (v - b.mean) - allowance) / b.sigma > SHIFTED_SIGMA)
         .collect();
-    let shift = if shifted.is_empty() { 0.0 } else { shifted.iter().map(|v| v - b.mean).sum::<f64>() / shifted.len() as f64 };
+    let shift =
+        if shifted.is_empty() { 0.0 } else { shifted.iter().map(|v| v - b.mean).sum::<f64>() / shifted.len() as f64 };
     let xy: Vec<(f64, f64)> = pts.iter().map(|&(i, v)| (records[i].release_no as f64, v)).collect();
     let (slope, slope_se) = line(&xy);
     let n = pts.len();

@@ -146,7 +146,11 @@ fn warnings_say_step_or_intermittent_and_clear_when_the_estimates_return() {
     assert_eq!(e.cleared_release_no, Some(80 + rule.clear_after as i64 - 1), "{e:?}");
     assert!(active_warnings(&step, &rule).is_empty());
     assert!(e.describe().contains("leak stepped +0.5"), "{}", e.describe());
-    assert!(e.describe().contains("at release 40") && e.describe().contains("cleared at release 89"), "{}", e.describe());
+    assert!(
+        e.describe().contains("at release 40") && e.describe().contains("cleared at release 89"),
+        "{}",
+        e.describe()
+    );
 }
 
 fn small_set(dir: &std::path::Path) -> std::path::PathBuf {
@@ -175,7 +179,8 @@ fn the_same_traces_under_other_names_are_duplicates_not_new_releases() {
         let a = copies.join(format!("{name}_copy.csv"));
         std::fs::write(&a, &text).unwrap();
         let b = copies.join(format!("backup-{name}.csv"));
-        std::fs::write(&b, text.lines().filter(|l| !l.starts_with("# release")).collect::<Vec<_>>().join("\n")).unwrap();
+        std::fs::write(&b, text.lines().filter(|l| !l.starts_with("# release")).collect::<Vec<_>>().join("\n"))
+            .unwrap();
         paths.extend([a, b]);
     }
     let again = ingest(&mut db, &paths, &opts).unwrap();
@@ -215,7 +220,8 @@ fn the_page_of_an_empty_history_says_so_and_look_alike_names_get_their_own_ids()
         }
     }
     let html = pbm_fleet::report::html(&db, &rule).unwrap();
-    let ids: Vec<&str> = html.match_indices("id=\"loco").map(|(at, _)| html[at + 4..].split('"').nth(1).unwrap()).collect();
+    let ids: Vec<&str> =
+        html.match_indices("id=\"loco").map(|(at, _)| html[at + 4..].split('"').nth(1).unwrap()).collect();
     assert_eq!(ids.len(), 3, "{ids:?}");
     let unique: std::collections::HashSet<_> = ids.iter().collect();
     assert_eq!(unique.len(), 3, "{ids:?}");

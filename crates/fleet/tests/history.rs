@@ -70,7 +70,11 @@ fn two_threads_ingesting_at_once_give_the_union_without_duplicates() {
     // are duplicates, not new releases (16 of a + loco-03's 8 of b).
     assert_eq!(db.count().unwrap(), 16 + 8);
     assert_eq!(sums.iter().map(|s| s.new).sum::<usize>(), 24, "each release is new exactly once");
-    assert_eq!(sums.iter().map(|s| s.duplicates.len()).sum::<usize>(), 16 + 16, "the other names' copies, in both runs");
+    assert_eq!(
+        sums.iter().map(|s| s.duplicates.len()).sum::<usize>(),
+        16 + 16,
+        "the other names' copies, in both runs"
+    );
     assert_eq!(db.duplicate_keys().unwrap(), 0);
     assert_eq!(db.integrity_check().unwrap(), "ok");
 }
