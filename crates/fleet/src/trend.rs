@@ -338,8 +338,7 @@ pub fn track(
             cleared_release_no: cleared.then(|| records[with[end].0].release_no),
         }
     };
-    for j in rule.baseline..with.len() {
-        let (i, v) = with[j];
+    for (j, &(i, v)) in with.iter().enumerate().skip(rule.baseline) {
         let inc = excess(v).clamp(-rule.z_clip, rule.z_clip) - rule.k;
         s = (s + inc).max(0.0);
         match active {
