@@ -22,12 +22,19 @@ fn main() -> Result<()> {
     if let Some(b) = std::env::var("FLEET_BASELINE").ok().and_then(|v| v.parse().ok()) {
         rule.baseline = b;
     }
+    if let Some(a) = std::env::var("FLEET_ORIFICE_ALLOWANCE").ok().and_then(|v| v.parse().ok()) {
+        rule.min_shift[1] = a;
+    }
+    if let Some(a) = std::env::var("FLEET_LEAK_ALLOWANCE").ok().and_then(|v| v.parse().ok()) {
+        rule.min_shift[0] = a;
+    }
     println!(
-        "warning rule: CUSUM k = {} σ, h = {} σ, baseline {} releases, |z| ≤ {}; in-control ARL ≈ {:.0} releases per parameter",
+        "warning rule: CUSUM k = {} σ, h = {} σ, baseline {} releases, |z| ≤ {}, allowance {:?}; in-control ARL ≈ {:.0} releases per parameter",
         rule.k,
         rule.h,
         rule.baseline,
         rule.z_clip,
+        rule.min_shift,
         rule.arl0()
     );
 
