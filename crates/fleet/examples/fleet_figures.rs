@@ -22,12 +22,19 @@ fn main() -> Result<()> {
     if let Some(b) = std::env::var("FLEET_BASELINE").ok().and_then(|v| v.parse().ok()) {
         rule.baseline = b;
     }
+    if let Some(a) = std::env::var("FLEET_ORIFICE_ALLOWANCE").ok().and_then(|v| v.parse().ok()) {
+        rule.min_shift[1] = a;
+    }
+    if let Some(a) = std::env::var("FLEET_LEAK_ALLOWANCE").ok().and_then(|v| v.parse().ok()) {
+        rule.min_shift[0] = a;
+    }
     println!(
-        "warning rule: CUSUM k = {} σ, h = {} σ, baseline {} releases, |z| ≤ {}; in-control ARL ≈ {:.0} releases per parameter",
+        "warning rule: CUSUM k = {} σ, h = {} σ, baseline {} releases, |z| ≤ {}, allowance {:?}; in-control ARL ≈ {:.0} releases per parameter",
         rule.k,
         rule.h,
         rule.baseline,
         rule.z_clip,
+        rule.min_shift,
         rule.arl0()
     );
 
@@ -102,6 +109,9 @@ fn main() -> Result<()> {
         for r in &records {
             let mut r = r.clone();
             r.origin = format!("{}#{round}", r.origin);
+            // New releases, not copies of stored ones (those would be refused as duplicates).
+            r.release_no += 1000 * (round + 1);
+            r.content_hash = r.content_hash.map(|h| format!("{h}#{round}"));
             n += db.store_file([Ok(r)])?.map_err(anyhow::Error::msg)?.releases;
         }
     }

@@ -27,6 +27,12 @@ pub fn run_ingest(a: &IngestRun) -> Result<Skipped> {
     }
     let mut db = FleetDb::open(&a.db)?;
     let s = ingest(&mut db, &a.paths, &a.options)?;
+    for d in s.duplicates.iter().take(10) {
+        eprintln!("duplicate, not stored: {d}");
+    }
+    if s.duplicates.len() > 10 {
+        eprintln!("… and {} more duplicates", s.duplicates.len() - 10);
+    }
     eprintln!("{s}; {} releases in {}", db.count()?, a.db.display());
     Ok(s.skipped)
 }

@@ -29,7 +29,7 @@ use std::time::Duration;
 pub const BUSY_TIMEOUT: Duration = Duration::from_secs(60);
 
 /// Version of the schema, kept in `PRAGMA user_version`.
-pub const SCHEMA_VERSION: i64 = 1;
+pub const SCHEMA_VERSION: i64 = 2;
 
 /// The tables (idempotent: run on every open).
 pub const SCHEMA: &str = "
@@ -48,21 +48,34 @@ CREATE TABLE IF NOT EXISTS releases (
     leak_mm        REAL,
     supply_bar_g   REAL,
     label          TEXT,
+    content_hash   TEXT,
+    numbered       INTEGER NOT NULL DEFAULT 0,
     ingested_at    TEXT    NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ', 'now')),
     UNIQUE (locomotive, source, origin, release_key)
 );
 CREATE INDEX IF NOT EXISTS releases_by_loco ON releases (locomotive, release_no, time_s);
 ";
 
+/// Schema 1 → 2: the samples' fingerprint and whether the release number is the trace's own.
+const MIGRATE_2: &str = "
+ALTER TABLE releases ADD COLUMN content_hash TEXT;
+ALTER TABLE releases ADD COLUMN numbered INTEGER NOT NULL DEFAULT 0;
+";
+
+/// Index of the duplicate checks (created after a migration has added the column).
+const INDEX_2: &str = "CREATE INDEX IF NOT EXISTS releases_by_hash ON releases (locomotive, content_hash);";
+
 const UPSERT: &str = "
 INSERT INTO releases (locomotive, source, origin, release_key, release_no, time_s, verdict,
-                      confidence_pct, no_diagnosis, orifice_mm, leak_mm, supply_bar_g, label)
-VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)
+                      confidence_pct, no_diagnosis, orifice_mm, leak_mm, supply_bar_g, label,
+                      content_hash, numbered)
+VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15)
 ON CONFLICT (locomotive, source, origin, release_key) DO UPDATE SET
     release_no = excluded.release_no, time_s = excluded.time_s, verdict = excluded.verdict,
     confidence_pct = excluded.confidence_pct, no_diagnosis = excluded.no_diagnosis,
     orifice_mm = excluded.orifice_mm, leak_mm = excluded.leak_mm,
     supply_bar_g = excluded.supply_bar_g, label = excluded.label,
+    content_hash = excluded.content_hash, numbered = excluded.numbered,
     ingested_at = strftime('%Y-%m-%dT%H:%M:%fZ', 'now')
 ";
 
@@ -72,12 +85,15 @@ pub struct FleetDb {
 }
 
 /// What storing one file did.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct Stored {
     /// Releases written (new or updated).
     pub releases: usize,
     /// Of those, releases that were new.
     pub new: usize,
+    /// Releases not stored because the locomotive already has them from another file (same
+    /// samples, or same `release` number of a numbered trace), as `file: why`.
+    pub duplicates: Vec<String>,
 }
 
 /// A stored release (a row of `releases`).
@@ -109,6 +125,10 @@ pub struct StoredRelease {
     pub supply_bar_g: Option<f64>,
     /// Label carried by the input.
     pub label: Option<String>,
+    /// Fingerprint of a trace's samples.
+    pub content_hash: Option<String>,
+    /// The release number is the trace's own `release` metadata.
+    pub numbered: bool,
 }
 
 impl FleetDb {
@@ -155,6 +175,15 @@ impl FleetDb {
         // Creating the schema is one immediate transaction, so two first opens do not race.
         let tx = Self::begin(&conn)?;
         tx.execute_batch(SCHEMA).with_context(|| format!("{}: not a fleet database", path.display()))?;
+        let has_hash: bool =
+            tx.query_row("SELECT count(*) FROM pragma_table_info('releases') WHERE name = 'content_hash'", [], |r| {
+                r.get::<_, i64>(0)
+            })? > 0;
+        if !has_hash {
+            tx.execute_batch(MIGRATE_2)
+                .with_context(|| format!("{}: cannot migrate the fleet database", path.display()))?;
+        }
+        tx.execute_batch(INDEX_2)?;
         tx.pragma_update(None, "user_version", SCHEMA_VERSION)?;
         tx.commit()?;
         Ok(Self { conn })
@@ -181,6 +210,11 @@ impl FleetDb {
                 "SELECT 1 FROM releases WHERE locomotive = ?1 AND source = ?2 AND origin = ?3 AND release_key = ?4",
             )?;
             let mut upsert = tx.prepare_cached(UPSERT)?;
+            let mut same_samples =
+                tx.prepare_cached("SELECT origin FROM releases WHERE locomotive = ?1 AND content_hash = ?2 LIMIT 1")?;
+            let mut same_number = tx.prepare_cached(
+                "SELECT origin FROM releases WHERE locomotive = ?1 AND source = ?2 AND release_no = ?3 AND numbered = 1 LIMIT 1",
+            )?;
             for r in releases {
                 let r = match r {
                     Ok(r) => r,
@@ -189,6 +223,28 @@ impl FleetDb {
                 };
                 let key = params![r.locomotive, r.source.label(), r.origin, r.release_key];
                 let known = exists.query_row(key, |_| Ok(())).optional()?.is_some();
+                if !known {
+                    let same: Option<String> = match &r.content_hash {
+                        Some(h) => same_samples.query_row(params![r.locomotive, h], |row| row.get(0)).optional()?,
+                        None => None,
+                    };
+                    let why = match same {
+                        Some(o) => Some(format!("same samples as {o}")),
+                        None if r.numbered => same_number
+                            .query_row(params![r.locomotive, r.source.label(), r.release_no], |row| {
+                                row.get::<_, String>(0)
+                            })
+                            .optional()?
+                            .map(|o| {
+                                format!("release {} of {} is already stored from {o}", r.release_no, r.locomotive)
+                            }),
+                        None => None,
+                    };
+                    if let Some(why) = why {
+                        stored.duplicates.push(format!("{}: {why}", r.origin));
+                        continue;
+                    }
+                }
                 upsert.execute(params![
                     r.locomotive,
                     r.source.label(),
@@ -203,6 +259,8 @@ impl FleetDb {
                     r.leak_mm,
                     r.supply_bar_g,
                     r.label,
+                    r.content_hash,
+                    r.numbered,
                 ])?;
                 stored.releases += 1;
                 stored.new += usize::from(!known);
@@ -229,7 +287,7 @@ impl FleetDb {
     pub fn releases(&self, locomotive: &str) -> Result<Vec<StoredRelease>> {
         let mut s = self.conn.prepare_cached(
             "SELECT locomotive, source, origin, release_key, release_no, time_s, verdict, confidence_pct,
-                    no_diagnosis, orifice_mm, leak_mm, supply_bar_g, label
+                    no_diagnosis, orifice_mm, leak_mm, supply_bar_g, label, content_hash, numbered
              FROM releases WHERE locomotive = ?1
              ORDER BY release_no, time_s, source, origin, release_key",
         )?;
@@ -248,6 +306,8 @@ impl FleetDb {
                 leak_mm: r.get(10)?,
                 supply_bar_g: r.get(11)?,
                 label: r.get(12)?,
+                content_hash: r.get(13)?,
+                numbered: r.get(14)?,
             })
         })?;
         Ok(rows.collect::<rusqlite::Result<_>>()?)

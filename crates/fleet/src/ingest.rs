@@ -15,7 +15,7 @@
 //! exit with status 3.
 
 use crate::db::{FleetDb, Stored};
-use crate::record::{can_estimates, can_locomotive_name, ReleaseRecord, Source};
+use crate::record::{can_estimates, can_locomotive_name, samples_hash, ReleaseRecord, Source};
 use anyhow::{bail, Result};
 use pbm::can::{Decoder, Report};
 use pbm_io::dataset::TraceItem;
@@ -37,6 +37,9 @@ pub struct IngestSummary {
     pub releases: usize,
     /// Of those, releases not in the database before.
     pub new: usize,
+    /// Releases not stored because the locomotive already has them under another file name
+    /// (same samples, or same `release` number), each as `file: why`.
+    pub duplicates: Vec<String>,
     /// Inputs (or lines of CAN logs) skipped, each with file and line.
     pub skipped: Skipped,
     /// Wall-clock time.
@@ -48,6 +51,7 @@ impl IngestSummary {
         self.files += 1;
         self.releases += s.releases;
         self.new += s.new;
+        self.duplicates.extend(s.duplicates);
     }
 }
 
@@ -63,6 +67,9 @@ impl std::fmt::Display for IngestSummary {
             secs,
             if secs > 0.0 { self.releases as f64 / secs } else { 0.0 }
         )?;
+        if !self.duplicates.is_empty() {
+            write!(f, "; {} duplicates not stored (already stored under another file name)", self.duplicates.len())?;
+        }
         if !self.skipped.is_empty() {
             write!(f, "; {} skipped", self.skipped.len())?;
         }
@@ -110,6 +117,7 @@ pub fn trace_record(item: &TraceItem, rank: usize) -> Result<Result<ReleaseRecor
         Err(e) => return Ok(Err(e.into())),
     };
     let name = item.path.display().to_string();
+    let numbered = meta.meta("release").is_some();
     let release_no = match meta.meta("release") {
         Some(v) => match v.parse::<i64>() {
             Ok(n) => n,
@@ -125,6 +133,10 @@ pub fn trace_record(item: &TraceItem, rank: usize) -> Result<Result<ReleaseRecor
         None => None,
     };
     drop(meta);
+    let content_hash = match std::fs::read(&item.path) {
+        Ok(bytes) => Some(samples_hash(&String::from_utf8_lossy(&bytes))),
+        Err(e) => return Ok(Err(FileError::new(&name, 0, format!("cannot read: {e}")))),
+    };
     let replay = match replay_item(item, &ReplayOptions::default()) {
         Ok(r) => r,
         Err(ReplayError::Input(e)) => return Ok(Err(e)),
@@ -146,6 +158,8 @@ pub fn trace_record(item: &TraceItem, rank: usize) -> Result<Result<ReleaseRecor
         leak_mm: f(est.and_then(|e| e.leak_mm)),
         supply_bar_g: f(est.and_then(|e| e.supply_bar_g)),
         label,
+        content_hash,
+        numbered,
     }))
 }
 
@@ -201,6 +215,8 @@ pub fn can_records(name: &str, origin: &str, reader: impl BufRead) -> (Vec<Relea
                     leak_mm: None,
                     supply_bar_g: None,
                     label: None,
+                    content_hash: None,
+                    numbered: false,
                 };
                 *n += 1;
                 fill(&mut r);

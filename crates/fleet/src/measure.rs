@@ -63,6 +63,8 @@ pub fn observe(o: &DegradationOptions) -> Result<Vec<Observed>> {
                 leak_mm,
                 supply_bar_g,
                 label: Some(truth.label.label().to_owned()),
+                content_hash: None,
+                numbered: true,
             };
             Ok(Observed { truth, record })
         })

@@ -5,7 +5,8 @@
 //! [`FaultReport`] and last [`Estimates`](pbm::estimator::Estimates), or a decoded CAN fault
 //! report); nothing is recomputed.
 
-use pbm::report::{FaultReport, Verdict};
+use pbm::report::{FaultReport, NoDiagnosis, Verdict};
+use pbm::sensor::SensorFault;
 
 /// Where a release came from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -53,6 +54,12 @@ pub struct ReleaseRecord {
     pub supply_bar_g: Option<f64>,
     /// The label the input carries (ground truth of a generated trace), if any.
     pub label: Option<String>,
+    /// Fingerprint of a trace's samples ([`samples_hash`]): the same release stored again under
+    /// another file name is recognised by it. `None` for a CAN report.
+    pub content_hash: Option<String>,
+    /// `true` when the release number is the trace's own `release` metadata (not its rank in a
+    /// data set): then (locomotive, release number) names the release.
+    pub numbered: bool,
 }
 
 impl ReleaseRecord {
@@ -65,6 +72,22 @@ impl ReleaseRecord {
     pub fn confidence_pct(&self) -> Option<u8> {
         match self.verdict {
             Some(Verdict::Class { confidence_pct, .. }) => Some(confidence_pct),
+            _ => None,
+        }
+    }
+
+    /// `true` when the monitor named a class for this release: only then do its estimates
+    /// describe the brake. A release it declined (sensor fault, unfamiliar, too short) or
+    /// closed without a diagnosis is not evidence about the brake, and the trends and
+    /// warnings do not follow its estimates.
+    pub fn diagnosed(&self) -> bool {
+        matches!(self.verdict, Some(Verdict::Class { .. }))
+    }
+
+    /// Why the monitor declined to name a class, when it declined.
+    pub fn declined(&self) -> Option<NoDiagnosis> {
+        match self.verdict {
+            Some(Verdict::CannotDiagnose(why)) => Some(why),
             _ => None,
         }
     }
@@ -85,6 +108,32 @@ pub fn verdict_label(v: Option<&Verdict>) -> String {
         Some(Verdict::CannotDiagnose(_)) => CANNOT_DIAGNOSE.to_owned(),
         None => NO_VERDICT.to_owned(),
     }
+}
+
+/// The reason of a declined diagnosis from its stored text (the core's own `Display` of
+/// [`NoDiagnosis`], as [`ReleaseRecord::no_diagnosis`] stores it); `None` for an unknown text.
+pub fn parse_no_diagnosis(text: &str) -> Option<NoDiagnosis> {
+    SensorFault::ALL
+        .into_iter()
+        .map(NoDiagnosis::SensorFault)
+        .chain([NoDiagnosis::TooShort, NoDiagnosis::Unfamiliar])
+        .find(|n| n.to_string() == text)
+}
+
+/// The fingerprint of a trace's samples: FNV-1a (64 bit, stable across builds and platforms)
+/// of its data lines — every line that is neither blank nor a `#` metadata line, trimmed — so
+/// that a copy of a trace under another name, or with other metadata, has the same one.
+pub fn samples_hash(text: &str) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut lines = 0u64;
+    for line in text.lines().map(str::trim).filter(|l| !l.is_empty() && !l.starts_with('#')) {
+        for b in line.bytes().chain([b'\n']) {
+            h ^= u64::from(b);
+            h = h.wrapping_mul(0x0100_0000_01b3);
+        }
+        lines += 1;
+    }
+    format!("{h:016x}-{lines}")
 }
 
 /// Stored verdict of a release where the monitor declined to name a class.

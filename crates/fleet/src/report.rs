@@ -204,13 +204,27 @@ fn fmt_opt(v: Option<f64>, decimals: usize) -> String {
     v.map_or_else(|| "–".to_owned(), |x| format!("{x:.decimals$}"))
 }
 
+/// An HTML id for a locomotive's section, unique on the page: `loco-` and the name's letters
+/// and digits, with `-2`, `-3`, … when names that differ only in other characters (`loco 7`,
+/// `loco-7`) would share it.
+fn unique_id(name: &str, taken: &mut std::collections::HashSet<String>) -> String {
+    let id = format!("loco-{}", name.chars().filter(char::is_ascii_alphanumeric).collect::<String>());
+    let mut candidate = id.clone();
+    let mut n = 2;
+    while !taken.insert(candidate.clone()) {
+        candidate = format!("{id}-{n}");
+        n += 1;
+    }
+    candidate
+}
+
 /// Builds the page from the database.
 pub fn page(db: &FleetDb, rule: &WarningRule) -> Result<(Page, Vec<String>)> {
     let statuses = status(db, rule)?;
     let mut sparks = Vec::new();
     let mut fleet = Section::new("fleet", "Fleet");
     fleet.push(Block::Para(format!(
-        "{} locomotives, {} releases. One row per locomotive: what the monitor said about its latest release and how sure it was, how its releases were judged so far, the brake's current estimated leak, release orifice and supply pressure, and an early warning when one of them is drifting toward a fault.",
+        "{} locomotives, {} releases. One row per locomotive: what the monitor said about its latest release and how sure it was, how its releases were judged so far, the brake's current estimated leak, release orifice and supply pressure, and an early warning when one of them has moved toward a fault, and a sensor warning when the monitor found the pressure transducer at fault.",
         statuses.len(),
         statuses.iter().map(|s| s.releases).sum::<usize>()
     )));
@@ -239,24 +253,23 @@ pub fn page(db: &FleetDb, rule: &WarningRule) -> Result<(Page, Vec<String>)> {
             None => ("–".to_owned(), "–".to_owned()),
         };
         let mix: Vec<String> = s.verdicts.iter().map(|(v, n)| format!("{} {n}", verdict_words(v))).collect();
-        let warnings: Vec<String> = s
-            .warnings
-            .iter()
-            .map(|w| {
-                format!(
-                    "{} drifting toward {:.1} {} since release {}",
-                    w.parameter.name(),
-                    w.parameter.threshold(),
-                    w.parameter.unit(),
-                    w.release_no
-                )
-            })
-            .collect();
+        let mut warnings: Vec<String> = s.undiagnosed.iter().filter(|u| u.sensor).map(|u| u.describe()).collect();
+        warnings.extend(s.warnings.iter().map(|w| match s.sensor_doubt(w) {
+            Some(u) => format!(
+                "cannot tell: {} — the transducer is at fault on releases since {}, the shift may be the sensor's",
+                w.describe(),
+                u.first_release_no
+            ),
+            None => w.describe(),
+        }));
         let key = key_parameter(s);
         sparks.push(sparkline(&records, key));
+        let mut quiet: Vec<String> = s.cleared.iter().map(|w| format!("earlier: {}", w.describe())).collect();
+        quiet.extend(s.undiagnosed.iter().filter(|u| !u.sensor).map(|u| u.describe()));
         let warn_cell = if warnings.is_empty() {
-            Cell::text("none")
+            Cell::text(if quiet.is_empty() { "none".to_owned() } else { format!("none; {}", quiet.join("; ")) })
         } else {
+            warnings.extend(quiet);
             Cell::strong(warnings.join("; ")).with_background((0xfc, 0xe4, 0xc4))
         };
         table.row(vec![
@@ -273,17 +286,24 @@ pub fn page(db: &FleetDb, rule: &WarningRule) -> Result<(Page, Vec<String>)> {
         ]);
         per_loco.push((s, records));
     }
-    fleet.push(Block::Table(table));
+    if statuses.is_empty() {
+        fleet.push(Block::Para("Nothing stored yet: no release has been ingested into this fleet history.".to_owned()));
+    } else {
+        fleet.push(Block::Table(table));
+    }
     fleet.push(Block::Note(format!(
-        "The trend column shows the leak, or the parameter warned about, over the releases, with its fault edge dashed. Fault edges: leak from {:.1} mm, release orifice below {:.1} mm, supply below {:.1} bar g. A warning is raised when the estimate has moved toward its edge by more than the locomotive's own release-to-release scatter for long enough (a cumulative-sum test over the locomotive's first {} releases as its baseline); on simulated healthy brakes it fires less than twice per 1000 releases.",
+        "The trend column shows the leak, or the parameter warned about, over the releases, with its fault edge dashed. Fault edges: leak from {:.1} mm, release orifice below {:.1} mm, supply below {:.1} bar g. A warning is raised when the estimate has moved toward its edge by more than the locomotive's own release-to-release scatter (and, for the supply, by more than the regulator's setting tolerance of {:.2} bar) for long enough (a cumulative-sum test over the locomotive's first {} diagnosed releases as its baseline); it says whether the estimate is drifting, stepped or shifted only on some releases, and clears after {} releases back at the baseline. Releases the monitor did not diagnose (sensor fault, unfamiliar release) are not followed.",
+        crate::trend::SUPPLY_SETTING_TOLERANCE_BAR,
         Parameter::Leak.threshold(),
         Parameter::Orifice.threshold(),
         Parameter::Supply.threshold(),
-        rule.baseline
+        rule.baseline,
+        rule.clear_after
     )));
     let mut sections = vec![fleet];
+    let mut ids = std::collections::HashSet::new();
     for (s, records) in per_loco {
-        let id = format!("loco-{}", s.locomotive.chars().filter(char::is_ascii_alphanumeric).collect::<String>());
+        let id = unique_id(&s.locomotive, &mut ids);
         let mut sec = Section::new(&id, s.locomotive.clone());
         let mut any = false;
         for p in Parameter::ALL {
@@ -305,6 +325,12 @@ pub fn page(db: &FleetDb, rule: &WarningRule) -> Result<(Page, Vec<String>)> {
         }
         if !any {
             sec.push(Block::Para("No estimates stored for this locomotive.".to_owned()));
+        }
+        for u in &s.undiagnosed {
+            sec.push(Block::Para(format!("{}.", u.describe())));
+        }
+        for w in s.warnings.iter().chain(&s.cleared) {
+            sec.push(Block::Para(format!("Warning: {}.", w.describe())));
         }
         sections.push(sec);
     }

@@ -2,10 +2,10 @@
 //! trends and warnings.
 
 use crate::db::{FleetDb, StoredRelease};
-use crate::record::{ReleaseRecord, Source};
-use crate::trend::{trend, warnings, Parameter, Trend, Warning, WarningRule};
+use crate::record::{parse_no_diagnosis, ReleaseRecord, Source};
+use crate::trend::{episodes, trend, Parameter, Trend, Warning, WarningRule};
 use anyhow::Result;
-use pbm::report::Verdict;
+use pbm::report::{NoDiagnosis, Verdict};
 use pbm::FaultClass;
 use std::collections::BTreeMap;
 
@@ -25,8 +25,88 @@ pub struct LocoStatus {
     pub latest_verdict: Option<(String, Option<i64>)>,
     /// Per parameter ([`Parameter::ALL`] order): its trend, if estimated.
     pub trends: [Option<Trend>; 3],
-    /// Early warnings raised.
+    /// Early warnings raised now (not cleared).
     pub warnings: Vec<Warning>,
+    /// Per parameter, the latest warning that has cleared, when none is raised now.
+    pub cleared: Vec<Warning>,
+    /// Releases the monitor did not diagnose, per reason (their estimates are not followed).
+    pub undiagnosed: Vec<Undiagnosed>,
+}
+
+impl LocoStatus {
+    /// The sensor fault that puts a brake warning in doubt: one seen on the locomotive from
+    /// the warning's onset on (a drifting transducer is flagged only once its error is large,
+    /// and the releases before that carry part of its error).
+    pub fn sensor_doubt(&self, w: &Warning) -> Option<&Undiagnosed> {
+        self.undiagnosed.iter().find(|u| u.sensor && u.last_release_no >= w.onset_release_no)
+    }
+}
+
+/// Releases of a locomotive that the monitor did not diagnose, for one reason.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Undiagnosed {
+    /// The reason as the core gives it (`sensor fault (implausible level: offset or gain
+    /// error)`, `unfamiliar release`, …; `closed without a diagnosis` for a release with none).
+    pub reason: String,
+    /// `true` for a sensor fault: the transducer, not the brake. A warning of its own.
+    pub sensor: bool,
+    /// Releases with this reason.
+    pub count: usize,
+    /// Release number of the first and of the latest of them.
+    pub first_release_no: i64,
+    /// Release number of the latest of them.
+    pub last_release_no: i64,
+    /// Releases followed from the first of them on (all reasons and diagnoses).
+    pub since: usize,
+}
+
+impl Undiagnosed {
+    /// In words: the sensor warning, or the note of undiagnosed releases.
+    pub fn describe(&self) -> String {
+        let span = format!(
+            "on {} of the {} releases since release {} (latest {})",
+            self.count, self.since, self.first_release_no, self.last_release_no
+        );
+        if self.sensor {
+            let kind =
+                self.reason.strip_prefix("sensor fault (").and_then(|r| r.strip_suffix(')')).unwrap_or(&self.reason);
+            format!("sensor: {kind} {span} — the transducer, not the brake; their estimates are not followed")
+        } else {
+            format!("not diagnosed: {} {span}; their estimates are not followed", self.reason)
+        }
+    }
+}
+
+/// The releases of `stored` (one source, timeline order) not diagnosed, grouped by reason,
+/// sensor faults first.
+pub fn undiagnosed(stored: &[&StoredRelease]) -> Vec<Undiagnosed> {
+    let mut out: Vec<Undiagnosed> = Vec::new();
+    for (pos, r) in stored.iter().enumerate() {
+        if FaultClass::from_label(&r.verdict).is_some() {
+            continue;
+        }
+        let reason = match (&r.no_diagnosis, r.verdict.as_str()) {
+            (Some(why), _) => why.clone(),
+            (None, crate::record::CANNOT_DIAGNOSE) => "no diagnosis (reason not recorded)".to_owned(),
+            (None, _) => "closed without a diagnosis".to_owned(),
+        };
+        match out.iter_mut().find(|u| u.reason == reason) {
+            Some(u) => {
+                u.count += 1;
+                u.last_release_no = r.release_no;
+            }
+            None => out.push(Undiagnosed {
+                sensor: reason.starts_with("sensor fault"),
+                reason,
+                count: 1,
+                first_release_no: r.release_no,
+                last_release_no: r.release_no,
+                since: stored.len() - pos,
+            }),
+        }
+    }
+    out.sort_by_key(|u| (!u.sensor, u.first_release_no));
+    out
 }
 
 /// A stored release as a record again (for the trend functions).
@@ -34,8 +114,11 @@ pub fn to_record(s: &StoredRelease) -> ReleaseRecord {
     let class = FaultClass::from_label(&s.verdict);
     let verdict = match (class, s.confidence_pct) {
         (Some(class), Some(c)) => Some(Verdict::Class { class, confidence_pct: u8::try_from(c).unwrap_or(0) }),
-        // The trend functions use the estimates only; the reason of a declined diagnosis is kept
-        // in the database, not rebuilt here.
+        // A declined diagnosis keeps its reason (the trends leave its estimates out and the
+        // status names the reason); an unknown stored reason still counts as declined.
+        _ if s.verdict == crate::record::CANNOT_DIAGNOSE => Some(Verdict::CannotDiagnose(
+            s.no_diagnosis.as_deref().and_then(parse_no_diagnosis).unwrap_or(NoDiagnosis::Unfamiliar),
+        )),
         _ => None,
     };
     ReleaseRecord {
@@ -50,6 +133,8 @@ pub fn to_record(s: &StoredRelease) -> ReleaseRecord {
         leak_mm: s.leak_mm,
         supply_bar_g: s.supply_bar_g,
         label: s.label.clone(),
+        content_hash: s.content_hash.clone(),
+        numbered: s.numbered,
     }
 }
 
@@ -75,6 +160,7 @@ pub fn status(db: &FleetDb, rule: &WarningRule) -> Result<Vec<LocoStatus>> {
     for loco in db.locomotives()? {
         let stored = db.releases(&loco)?;
         let records = trend_series(&stored);
+        let all = episodes(&records, rule);
         let mut verdicts = BTreeMap::new();
         for r in followed(&stored) {
             *verdicts.entry(r.verdict.clone()).or_insert(0) += 1;
@@ -86,7 +172,13 @@ pub fn status(db: &FleetDb, rule: &WarningRule) -> Result<Vec<LocoStatus>> {
             verdicts,
             latest_verdict: followed(&stored).last().map(|r| (r.verdict.clone(), r.confidence_pct)),
             trends: Parameter::ALL.map(|p| trend(&records, p)),
-            warnings: warnings(&records, rule),
+            warnings: all.iter().filter(|w| w.cleared_release_no.is_none()).cloned().collect(),
+            cleared: Parameter::ALL
+                .into_iter()
+                .filter(|&p| !all.iter().any(|w| w.parameter == p && w.cleared_release_no.is_none()))
+                .filter_map(|p| all.iter().rev().find(|w| w.parameter == p).cloned())
+                .collect(),
+            undiagnosed: undiagnosed(&followed(&stored).collect::<Vec<_>>()),
         });
     }
     Ok(out)
@@ -114,27 +206,34 @@ pub fn lines(statuses: &[LocoStatus]) -> Vec<String> {
                 None => "-".to_owned(),
             };
             let est: Vec<String> = Parameter::ALL.iter().zip(&s.trends).map(|(&p, t)| estimate_text(t, p)).collect();
-            let warn = if s.warnings.is_empty() {
-                "no warning".to_owned()
-            } else {
-                let w: Vec<String> = s
-                    .warnings
-                    .iter()
-                    .map(|w| {
-                        let eta = s.trends[w.parameter as usize]
-                            .and_then(|t| t.releases_to_edge)
-                            .map_or_else(String::new, |n| format!(", edge in ≈ {n:.0} releases"));
-                        format!(
-                            "WARNING {} drifting toward {:.1} {} since release {}{eta}",
-                            w.parameter.name(),
-                            w.parameter.threshold(),
-                            w.parameter.unit(),
-                            w.release_no
-                        )
-                    })
-                    .collect();
-                w.join("; ")
-            };
+            let mut warn: Vec<String> = Vec::new();
+            for u in s.undiagnosed.iter().filter(|u| u.sensor) {
+                warn.push(format!("SENSOR WARNING {}", u.describe()));
+            }
+            for w in &s.warnings {
+                if let Some(u) = s.sensor_doubt(w) {
+                    warn.push(format!(
+                        "CANNOT TELL {} — the transducer is at fault on releases since {} (sensor warning): the shift may be the sensor's, not the brake's",
+                        w.describe(),
+                        u.first_release_no
+                    ));
+                    continue;
+                }
+                let eta = s.trends[w.parameter as usize]
+                    .and_then(|t| t.releases_to_edge)
+                    .map_or_else(String::new, |n| format!(", edge in ≈ {n:.0} releases"));
+                warn.push(format!("WARNING {}{eta}", w.describe()));
+            }
+            if warn.is_empty() {
+                warn.push("no warning".to_owned());
+            }
+            for w in &s.cleared {
+                warn.push(format!("(earlier: {})", w.describe()));
+            }
+            for u in s.undiagnosed.iter().filter(|u| !u.sensor) {
+                warn.push(u.describe());
+            }
+            let warn = warn.join("; ");
             let stored = if s.stored > s.releases {
                 format!(" ({} stored from traces and cab logs)", s.stored)
             } else {

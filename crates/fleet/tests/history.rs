@@ -65,8 +65,16 @@ fn two_threads_ingesting_at_once_give_the_union_without_duplicates() {
         .collect();
     let sums: Vec<_> = handles.into_iter().map(|h| h.join().unwrap()).collect();
     let db = FleetDb::open(&db_path).unwrap();
-    assert_eq!(db.count().unwrap(), 16 + 24);
-    assert_eq!(sums.iter().map(|s| s.new).sum::<usize>(), 40, "each release is new exactly once");
+    // Both sets name their locomotives loco-01… and number their releases 0…7: set b's loco-01
+    // and loco-02 releases are (locomotive, release number) pairs set a already has, so they
+    // are duplicates, not new releases (16 of a + loco-03's 8 of b).
+    assert_eq!(db.count().unwrap(), 16 + 8);
+    assert_eq!(sums.iter().map(|s| s.new).sum::<usize>(), 24, "each release is new exactly once");
+    assert_eq!(
+        sums.iter().map(|s| s.duplicates.len()).sum::<usize>(),
+        16 + 16,
+        "the other names' copies, in both runs"
+    );
     assert_eq!(db.duplicate_keys().unwrap(), 0);
     assert_eq!(db.integrity_check().unwrap(), "ok");
 }
@@ -85,6 +93,8 @@ fn fake(origin: &str, k: i64) -> ReleaseRecord {
         leak_mm: Some(0.0),
         supply_bar_g: Some(7.7),
         label: None,
+        content_hash: None,
+        numbered: false,
     }
 }
 
