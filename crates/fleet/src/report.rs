@@ -254,12 +254,8 @@ pub fn page(db: &FleetDb, rule: &WarningRule) -> Result<(Page, Vec<String>)> {
         };
         let mix: Vec<String> = s.verdicts.iter().map(|(v, n)| format!("{} {n}", verdict_words(v))).collect();
         let mut warnings: Vec<String> = s.undiagnosed.iter().filter(|u| u.sensor).map(|u| u.describe()).collect();
-        warnings.extend(s.warnings.iter().map(|w| match s.sensor_doubt(w) {
-            Some(u) => format!(
-                "cannot tell: {} — the transducer is at fault on releases since {}, the shift may be the sensor's",
-                w.describe(),
-                u.first_release_no
-            ),
+        warnings.extend(s.warnings.iter().map(|w| match s.doubt(w) {
+            Some(why) => format!("cannot tell: {} — {why}", w.describe()),
             None => w.describe(),
         }));
         let key = key_parameter(s);

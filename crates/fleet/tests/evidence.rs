@@ -226,3 +226,53 @@ fn the_page_of_an_empty_history_says_so_and_look_alike_names_get_their_own_ids()
     let unique: std::collections::HashSet<_> = ids.iter().collect();
     assert_eq!(unique.len(), 3, "{ids:?}");
 }
+
+/// A growing leak holds the chamber below the supply, so the supply estimate falls with it
+/// while the supply is fine: on such a locomotive a supply warning after the leak warning reads
+/// "CANNOT TELL", naming the leak (the degradation scenario's leaking locomotive got "supply
+/// intermittently toward 7.2 bar g" once the leak passed 0.9 mm). A supply that falls on its
+/// own, with no brake warning before it, still warns.
+#[test]
+fn a_supply_warning_after_a_leak_warning_cannot_tell() {
+    let leak_class = Verdict::Class { class: FaultClass::AirLeak, confidence_pct: 99 };
+    let records: Vec<ReleaseRecord> = (0..150)
+        .map(|i| {
+            if i < 40 {
+                healthy("loco-l", i)
+            } else {
+                let leak = 0.05 + 0.95 * (i - 40) as f64 / 110.0;
+                // The plateau falls 0.1 bar per mm of leak beyond 0.5 mm, with scatter.
+                let sag = 0.1 * (leak - 0.5).max(0.0) / 0.5 * 4.0 + 0.004 * wiggle(i + 5);
+                let verdict = if leak >= 0.5 { leak_class } else { NORMAL };
+                rec("loco-l", i, verdict, leak, 1.25 + 0.004 * wiggle(i + 3), 7.6 - sag)
+            }
+        })
+        .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let mut db = FleetDb::open(&dir.path().join("f.sqlite")).unwrap();
+    for r in records {
+        db.store_file([Ok(r)]).unwrap().unwrap();
+    }
+    let rule = WarningRule::default();
+    let s = status(&db, &rule).unwrap();
+    let kinds: Vec<Parameter> = s[0].warnings.iter().map(|w| w.parameter).collect();
+    assert!(kinds.contains(&Parameter::Leak) && kinds.contains(&Parameter::Supply), "{kinds:?}");
+    let line = &lines(&s)[0];
+    assert!(line.contains("WARNING leak"), "{line}");
+    assert!(!line.contains("WARNING supply"), "{line}");
+    assert!(line.contains("CANNOT TELL supply") && line.contains("the supply itself may be fine"), "{line}");
+
+    // The supply alone falling: a warning as it reads.
+    let records: Vec<ReleaseRecord> = (0..150)
+        .map(|i| {
+            let drop = if i < 40 { 0.0 } else { 0.5 * (i - 40) as f64 / 110.0 };
+            rec("loco-p", i, NORMAL, 0.05 + 0.02 * wiggle(i), 1.25 + 0.004 * wiggle(i + 3), 7.6 - drop)
+        })
+        .collect();
+    let mut db = FleetDb::open(&dir.path().join("g.sqlite")).unwrap();
+    for r in records {
+        db.store_file([Ok(r)]).unwrap().unwrap();
+    }
+    let line = &lines(&status(&db, &rule).unwrap())[0];
+    assert!(line.contains("WARNING supply") && !line.contains("CANNOT TELL"), "{line}");
+}
