@@ -1285,11 +1285,11 @@ pub struct AuditOutcome {
 /// and sets of the independent plant, 0.95–1.04 on an independent tester's ten library
 /// mechanisms. With ≥ 1000 effective samples a model that leaves 1.1× is already wrong by more
 /// than 5 σ of the χ² statistic, so the floor only allows for the twin's own model error. Wrong
-/// models of the library that fit *nearly* left 1.6–1.9 (valve lag + laminar leak fitted as
-/// sensor lag + regulator droop, a bowed transducer as a laminar leak) and a 3000 N sticky spot
-/// 1.97: at the former floor of 2 they read as "explains the discrepancy" or `none`. Above it
-/// the verdict is `unexplained` when no candidate is chosen, and a chosen cause is reported as
-/// explaining only part of the discrepancy.
+/// models of the library that fit *nearly* left 1.6–1.7 (a transducer bowed 0.15 bar fitted as
+/// a laminar leak, valve lag + laminar leak as sensor lag + regulator droop): at the former
+/// floor of 2 the first was named as the cause of most of the discrepancy. Above it the verdict
+/// is `unexplained` when no candidate is chosen, and a chosen cause is reported as explaining
+/// only part of the discrepancy.
 pub const NOISE_FLOOR_RATIO: f64 = 1.35;
 
 /// Whether a cause that leaves `chosen`× the noise of the base model's `base`× explains too
@@ -1313,7 +1313,7 @@ pub const WINDOW_SAMPLES: usize = 100;
 /// Largest RMS residual of any 1 s window, in noise σ of the mean release, that a model may
 /// leave and still be at the noise floor. The right model leaves at most 1.34 (measured on 30
 /// clean releases and sets of the independent plant: 1.05–1.34; the tester's ten library
-/// mechanisms 1.1–1.3); the worst of ~60 windows of white noise is ≈ 1.2. A transducer that
+/// mechanisms 1.1–1.9); the worst of ~60 windows of white noise is ≈ 1.2. A transducer that
 /// reads 0.06 bar high mid-range left 2.98 and was `none` at the former floor of 3.
 pub const WINDOW_FLOOR_RATIO: f64 = 2.0;
 
