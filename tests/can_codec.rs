@@ -1126,3 +1126,126 @@ fn the_report_after_one_delayed_within_the_tolerance_is_accepted() {
     }
     assert!(tried >= 2, "{tried}");
 }
+
+// ---- reports the monitor never sent (CRC-passing foreign reports, issue 18) ----------------
+
+/// The identity the status frames of a stream carry.
+fn stream_identity(stream: &[(u64, CanFrame)]) -> Identity {
+    let (_, f) = stream.iter().find(|(_, f)| is_status(f)).expect("a status frame");
+    status_link(bits_of(f)).identity
+}
+
+/// A fault report the monitor did not send, whose CRC passes for the followed identity (one
+/// of the CRC's identity collisions, or a corruption that kept it): time since release
+/// `tau_cs`, counter `counter`.
+fn foreign_report(stream: &[(u64, CanFrame)], tau_cs: u16, counter: u8) -> CanFrame {
+    let r = FaultReport {
+        verdict: Verdict::Class { class: FaultClass::OrificeBlock, confidence_pct: 97 },
+        time_since_release_cs: tau_cs,
+        ..example_fault()
+    };
+    encode_fault(&r, counter, stream_identity(stream))
+}
+
+/// Inserts `frame` at receive time `t_us`, before the genuine frames of that time.
+fn insert(stream: &[(u64, CanFrame)], t_us: u64, frame: CanFrame) -> (Vec<(u64, CanFrame)>, usize) {
+    let at = stream.iter().position(|(t, _)| *t >= t_us).unwrap_or(stream.len());
+    let mut s = stream.to_vec();
+    s.insert(at, (t_us, frame));
+    (s, at)
+}
+
+/// A report with a plausible time and a counter a few ahead (it claims lost reports) is
+/// accepted, but the next status frame's `FaultReportCount` does not count it: it is withdrawn
+/// (`Reception::withdrawn`), and the genuine reports after it are accepted.
+#[test]
+fn a_report_the_heartbeat_does_not_count_is_withdrawn() {
+    let g = genuine_stream(20);
+    let (s, at) = insert(&g, 1_500_000, foreign_report(&g, 150, 3));
+    let mut d = Decoder::new();
+    let mut withdrawn = 0;
+    for (i, (t, f)) in s.iter().enumerate() {
+        let r = d.receive(*t, f);
+        withdrawn += r.withdrawn;
+        if i == at {
+            assert!(r.result.is_ok(), "accepted at first: {r:?}");
+        } else {
+            assert!(r.result.is_ok(), "genuine frame at {t}: {r:?}");
+        }
+        if *t == 2_000_000 && is_status(f) {
+            assert_eq!(r.withdrawn, 1, "withdrawn by the next status frame: {r:?}");
+        }
+    }
+    assert_eq!(withdrawn, 1);
+}
+
+/// A report whose counter is behind the count the receiver last learnt, within less time than
+/// the counter needs to go round: sent before that, so old (`stale`), whatever its time says.
+#[test]
+fn a_counter_behind_the_heartbeats_count_is_stale() {
+    let g = genuine_stream(20);
+    // Reports at 2.3 s (counter 0), 3.3 s (1), 4.3 s (2): counter 0 again at 4.6 s.
+    let (s, at) = insert(&g, 4_600_000, foreign_report(&g, 460, 0));
+    let fl = flags(&s);
+    assert_eq!(fl[at], Some("stale"), "{:?}", fl[at]);
+    assert_eq!(flagged(&fl), 1, "only the inserted frame");
+}
+
+/// A report that says its release began before the monitor powered up (as the session's first
+/// heartbeat counter tells), with no heartbeat of the previous release seen, cannot be vouched
+/// for: shown stale. A genuine report of that release that contradicts it replaces it (it is
+/// withdrawn); the genuine reports are all accepted and current.
+#[test]
+fn a_report_from_before_the_monitor_powered_up_is_replaced_by_the_genuine_one() {
+    let g = genuine_stream(20);
+    // Right before the status frame at 2 s (which then cannot tell it from the report of its
+    // own tick); the genuine first report follows at 2.3 s.
+    let (s, at) = insert(&g, 2_000_000, foreign_report(&g, 3_000, 0));
+    let mut d = Decoder::new();
+    let mut withdrawn = 0;
+    for (i, (t, f)) in s.iter().enumerate() {
+        let r = d.receive(*t, f);
+        withdrawn += r.withdrawn;
+        assert!(r.result.is_ok(), "{t}: {r:?}");
+        if i == at {
+            assert!(r.stale, "not current: {r:?}");
+        } else if !is_status(f) {
+            assert!(!r.stale && d.is_current(*t, *t), "{t}: {r:?}");
+        }
+    }
+    assert_eq!(withdrawn, 1);
+}
+
+/// The genuine counterpart: a receiver that joins mid-release a monitor whose 68-minute
+/// heartbeat counter has gone round (so its counter says it powered up after the release
+/// began). The first report is accepted but shown stale (it cannot be vouched for); the next,
+/// which agrees with it, is current. Nothing is flagged.
+#[test]
+fn a_monitor_whose_counter_wrapped_is_believed_from_its_second_report() {
+    let g = genuine_stream(20);
+    // The receiver joins at 10 s; the heartbeat counter is 4096 lower than the uptime.
+    let s: Vec<(u64, CanFrame)> = g
+        .iter()
+        .filter(|(t, _)| *t >= 10_000_000)
+        .map(|&(t, f)| {
+            if !is_status(&f) {
+                return (t, f);
+            }
+            let link = status_link(bits_of(&f));
+            let (report, _) = decode_frame(&f, link.identity).unwrap();
+            let Report::Status(st) = report else { unreachable!() };
+            (t, encode_status(&st, StatusLink { counter: link.counter.wrapping_sub(6) % 4096, ..link }))
+        })
+        .collect();
+    let mut d = Decoder::new();
+    let mut faults = 0;
+    for (t, f) in &s {
+        let r = d.receive(*t, f);
+        assert!(r.result.is_ok(), "{t}: {r:?}");
+        if !is_status(f) {
+            faults += 1;
+            assert_eq!(r.stale, faults == 1, "{t}: only the first report is not current: {r:?}");
+        }
+    }
+    assert!(faults >= 2);
+}

@@ -436,7 +436,8 @@ pub struct DecodeArgs {
     /// Output format.
     #[arg(long, value_enum, default_value_t = DecodeFormat::Text)]
     format: DecodeFormat,
-    /// Exit 1 when any frame was flagged or lost (for CI replays); the summary says what.
+    /// Exit 4 when any frame was flagged or lost, a fault report was stale, or the log held no
+    /// frame (for CI replays; an unreadable log is exit 1); the summary says what.
     #[arg(long)]
     strict: bool,
     /// Check integrity only (identifier, length, CRC, signal values), not freshness: for codec

@@ -3,12 +3,14 @@
 //!
 //! Exit status: 0 when everything was done, 1 when the command failed, 2 for a usage error,
 //! [`pbm_io::error::SKIPPED_EXIT_CODE`] (3) when the command completed and wrote its outputs but
-//! skipped bad inputs (each named on stderr with its file and line).
+//! skipped bad inputs (each named on stderr with its file and line),
+//! [`pbm_io::error::CHECK_FAILED_EXIT_CODE`] (4) when a check read its input to the end and found
+//! it wrong (`can decode --strict`).
 
 mod cli;
 
 use clap::Parser;
-use pbm_io::error::{Skipped, SKIPPED_EXIT_CODE};
+use pbm_io::error::{CheckFailed, Skipped, CHECK_FAILED_EXIT_CODE, SKIPPED_EXIT_CODE};
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
@@ -17,7 +19,11 @@ fn main() -> ExitCode {
         Ok(skipped) => exit_code(&skipped),
         Err(e) => {
             eprintln!("error: {e:#}");
-            ExitCode::FAILURE
+            if e.downcast_ref::<CheckFailed>().is_some() {
+                ExitCode::from(CHECK_FAILED_EXIT_CODE)
+            } else {
+                ExitCode::FAILURE
+            }
         }
     }
 }

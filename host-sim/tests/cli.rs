@@ -305,8 +305,9 @@ fn fit_refuses_a_trace_too_short_to_fit() {
     assert!(!stdout.contains("NaN") && !stderr.contains("NaN"), "{stdout}{stderr}");
 }
 
-/// `can decode --strict` (for CI replays): exit 0 on a clean log, 1 when any frame was flagged
-/// or lost, with the summary saying what; without `--strict` the same log exits 0.
+/// `can decode --strict` (for CI replays): exit 0 on a clean log, 4 when any frame was flagged
+/// or lost, a report was stale, or the log held no frame, with the summary saying what; 1 when
+/// the log cannot be read; without `--strict` the same logs exit 0.
 #[test]
 fn can_decode_strict_exit_codes() {
     let tmp = tempfile::tempdir().unwrap();
@@ -341,11 +342,38 @@ fn can_decode_strict_exit_codes() {
         std::fs::write(&path, variant.join("\n") + "\n").unwrap();
         let out = strict(&path);
         let stderr = String::from_utf8_lossy(&out.stderr);
-        assert_eq!(out.status.code(), Some(1), "{name}: {stderr}");
+        assert_eq!(out.status.code(), Some(4), "{name}: {stderr}");
         assert!(stderr.contains("--strict") && stderr.contains(needle), "{name}: {stderr}");
         let lenient = host_sim(&[os("can"), os("decode"), path.as_os_str()]);
         assert_eq!(lenient.status.code(), Some(0), "{name} without --strict");
     }
+    // The log's last release replayed after the live session ended: flagged. The status frames
+    // after the 150th removed (the heartbeat stops, the reports go on): the reports are shown
+    // stale, never current. Both fail --strict.
+    let no_heartbeat: Vec<String> =
+        lines.iter().enumerate().filter(|(i, l)| *i < 150 || l.contains("18FF5080#")).map(|(_, l)| l.clone()).collect();
+    let mut late = lines.clone();
+    let (t_end, _) = lines[lines.len() - 1].split_once(' ').unwrap();
+    let t_end: f64 = t_end.trim_matches(|c| c == '(' || c == ')').parse().unwrap();
+    for (i, l) in lines.iter().enumerate().skip(150).filter(|(_, l)| l.contains("18FF5080#")) {
+        late.push(format!("({:.6}) {}", t_end + 2.0 + i as f64 * 0.001, l.split_once(' ').unwrap().1));
+    }
+    // Nothing but blank lines, and an unreadable path.
+    let cases = [
+        ("late", late.join("\n") + "\n", 4, "flagged"),
+        ("no-heartbeat", no_heartbeat.join("\n") + "\n", 4, "shown stale"),
+        ("empty", "\n\n".to_owned(), 4, "no frame"),
+    ];
+    for (name, text, code, needle) in cases {
+        let path = tmp.path().join(format!("{name}.log"));
+        std::fs::write(&path, text).unwrap();
+        let out = strict(&path);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(code), "{name}: {stderr}");
+        assert!(stderr.contains(needle), "{name}: {stderr}");
+    }
+    let missing = strict(&tmp.path().join("no-such.log"));
+    assert_eq!(missing.status.code(), Some(1), "{}", String::from_utf8_lossy(&missing.stderr));
 }
 
 #[test]

@@ -65,7 +65,22 @@
 //!   (two reports late the same way move the release start, as for the heartbeat);
 //! - the first report of a release must place the release command between the last heartbeat
 //!   of the previous release and the first of its own, else [`FrameError::Untimely`];
-//! - its counter may jump ahead (fault reports lost), not back ([`FrameError::Stale`]).
+//! - its counter may jump ahead (fault reports lost), not back ([`FrameError::Stale`]): it
+//!   must be explained by a number of reports sent since the receiver last learnt the sender's
+//!   count (the last status frame's `FaultReportCount` or the last accepted report) that the
+//!   rate bound allows in the time since, else [`FrameError::Stale`] (behind the count: sent
+//!   before that frame) or [`FrameError::RateExceeded`] (further ahead than the time allows);
+//! - a first report whose release began before the monitor powered up (its session's first
+//!   heartbeat counter says when), with no heartbeat of the previous release seen, cannot be
+//!   vouched for: accepted but stale until a second report agrees; a report the session can
+//!   vouch for that contradicts it replaces it ([`Reception::withdrawn`]).
+//!
+//! A status frame whose `FaultReportCount` leaves out reports this receiver accepted (longer
+//! after them than any latency difference allowed, so not the report of its own tick) shows
+//! the monitor never sent them: they are withdrawn ([`Reception::withdrawn`]) and the receiver
+//! goes back to what it held before them. That is what catches a fault report of another
+//! locomotive whose CRC happens to pass (one of the CRC's 15 identity collisions, or a
+//! corruption that kept the CRC) when its time since release fits.
 //!
 //! Before any heartbeat a fault report cannot be attributed: [`FrameError::NoHeartbeat`]. One
 //! that comes while a heartbeat is overdue, or after the heartbeat timed out (judged against
@@ -124,6 +139,11 @@ struct FaultTrack {
     counter: u8,
     /// The release start rests on this one report (the release's first accepted).
     single: bool,
+    /// The release start lies before anything the session can vouch for: before the monitor's
+    /// power-up as its heartbeat counter tells it, with no heartbeat of the previous release
+    /// seen. Shown stale until a second report agrees; a report that contradicts it and fits
+    /// replaces it (it was a CRC-passing report of another locomotive or a corruption).
+    unverified: bool,
     /// How much later than first estimated the release start was moved by a latency step.
     lag_us: i64,
     /// Release start implied by the last report flagged as late (for a latency step).
@@ -132,8 +152,8 @@ struct FaultTrack {
 
 impl FaultTrack {
     /// The first accepted report of a release.
-    const fn first(at_us: u64, release: u8, tau: u16, start_us: i64, key: u64, counter: u8) -> Self {
-        Self { at_us, release, tau, start_us, key, counter, single: true, lag_us: 0, late_start_us: None }
+    const fn first(at_us: u64, release: u8, tau: u16, start_us: i64, key: u64, counter: u8, unverified: bool) -> Self {
+        Self { at_us, release, tau, start_us, key, counter, single: true, unverified, lag_us: 0, late_start_us: None }
     }
 }
 
@@ -149,6 +169,9 @@ struct Session {
     anchor_us: i64,
     /// Receive time of the first accepted status frame with this release number.
     release_since_us: u64,
+    /// When the monitor powered up, as the first heartbeat of the session tells it (its receive
+    /// time less its counter in seconds; later if the counter had wrapped).
+    power_up_us: i64,
     /// Receive time of the last accepted status frame of the previous release, if seen.
     release_before_us: Option<u64>,
     /// The counter the next fault report should carry.
@@ -173,6 +196,21 @@ struct Session {
     /// A fault report the last status frame counted (`FaultReportCount`) that has not arrived:
     /// a status frame may overtake the report of its own tick. Lost if anything else comes first.
     owed_fault: Option<u8>,
+    /// The fault-report state before the first report accepted that no status frame has counted
+    /// yet, and how many such reports there are: a later status frame whose count does not
+    /// include them shows they were not sent by this monitor, and they are withdrawn.
+    unconfirmed: Option<Unconfirmed>,
+}
+
+/// What [`Session::unconfirmed`] restores.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Unconfirmed {
+    fault: Option<FaultTrack>,
+    last_fault_counter: Option<u8>,
+    next_fault: u8,
+    owed_fault: Option<u8>,
+    /// Reports accepted since (saturating).
+    reports: u8,
 }
 
 /// What [`Decoder::receive`] made of one frame.
@@ -199,6 +237,12 @@ pub struct Reception {
     /// to the silence): no heartbeat on time vouches for it, so it is not current and a display
     /// shows it as stale, until an accepted heartbeat comes.
     pub stale: bool,
+    /// Fault reports accepted earlier that this status frame's `FaultReportCount` shows the
+    /// monitor never sent (the count stays below them a full tick and more after they came): a
+    /// report of another locomotive whose CRC happened to match, or a corruption that kept the
+    /// CRC. They are withdrawn: a display stops showing them and goes back to the report it
+    /// held before them.
+    pub withdrawn: u8,
 }
 
 /// Stream decoder of the monitor's frames.
@@ -283,6 +327,7 @@ impl Decoder {
             identity: None,
             superseded: false,
             stale: false,
+            withdrawn: 0,
         };
         if let Some(s) = self.session {
             let silence = now_us.saturating_sub(s.at_us);
@@ -431,6 +476,7 @@ impl Decoder {
             anchor_us: diff(now, 0),
             release_since_us: now,
             release_before_us: None,
+            power_up_us: diff(now, u64::from(link.counter) * STATUS_PERIOD_US),
             next_fault: link.fault_count & 0xF,
             last_fault_counter: None,
             fault: None,
@@ -440,6 +486,7 @@ impl Decoder {
             off_phase: None,
             release_prev: None,
             owed_fault: None,
+            unconfirmed: None,
         });
         self.remember(link);
         rec.identity = Some(identity);
@@ -471,6 +518,32 @@ impl Decoder {
         // be the report of this frame's own tick, overtaken by it: owed, lost only if anything
         // else comes first. A report owed since the previous status frame is lost. (A count
         // behind ours: a fault report overtook this frame, nothing lost.)
+        // Reports this receiver accepted that the count leaves out: legitimate only for the
+        // report of this frame's own tick (sent first, or a moment after it was composed); once
+        // the count stays below them longer than any latency difference the receiver allows,
+        // the monitor did not send them.
+        let ahead = |s: &Session| s.next_fault.wrapping_sub(link.fault_count) & 0xF;
+        if (1..=8).contains(&ahead(&s)) {
+            let since_report = s.fault.map_or(u64::MAX, |f| now.saturating_sub(f.at_us));
+            let own_tick = ahead(&s) == 1 && since_report <= MAX_LATENCY_STEP_US + TOLERANCE_US;
+            if !own_tick {
+                if let Some(u) = s.unconfirmed.take() {
+                    rec.withdrawn = u.reports;
+                    s.fault = u.fault;
+                    s.last_fault_counter = u.last_fault_counter;
+                    s.next_fault = u.next_fault;
+                    s.owed_fault = u.owed_fault;
+                }
+                // Still ahead with no report to withdraw: the count held came from a status frame
+                // corrupted in a way the CRC missed; the count only grows, so this one is right.
+                if (1..=8).contains(&ahead(&s)) {
+                    s.next_fault = link.fault_count & 0xF;
+                    s.owed_fault = None;
+                }
+            }
+        } else {
+            s.unconfirmed = None;
+        }
         let mut lost = u8::from(s.owed_fault.take().is_some());
         let behind = link.fault_count.wrapping_sub(s.next_fault) & 0xF;
         if behind < 8 {
@@ -576,6 +649,7 @@ impl Decoder {
         let key = bits & !(l::FAULT_CRC.mask() | l::FAULT_COUNTER.mask() | l::TIME_SINCE_RELEASE.mask());
         let slack = (TOLERANCE_US + TAU_ROUNDING_US) as i64;
         let start = diff(now, tau_us);
+        let mut replaced = false;
         let track = match s.fault {
             Some(f) => {
                 let gap = diff(now, f.at_us);
@@ -596,7 +670,29 @@ impl Decoder {
                 if gap < (min_gap - TOLERANCE_US) as i64 && !sent_apart {
                     return Err(FrameError::RateExceeded { gap_ms: ms(gap.max(0)) as u32 });
                 }
-                if f.release == identity.release {
+                // A release start that rests on one unverified report, contradicted by this report
+                // whose start the session can vouch for: this one replaces it.
+                let replaces = f.release == identity.release
+                    && f.single
+                    && f.unverified
+                    && start.saturating_sub(f.start_us).abs() > slack
+                    && start >= s.power_up_us.saturating_sub(slack)
+                    && self.first_of_release(&s, identity, start, slack) == Ok(false);
+                if replaces {
+                    replaced = true;
+                    rec.withdrawn = 1;
+                    if let Some(u) = s.unconfirmed.take() {
+                        rec.withdrawn = u.reports;
+                        s.fault = u.fault;
+                        s.last_fault_counter = u.last_fault_counter;
+                        s.next_fault = u.next_fault;
+                        s.owed_fault = u.owed_fault;
+                    } else {
+                        s.fault = None;
+                        s.last_fault_counter = None;
+                    }
+                    FaultTrack::first(now, identity.release, tau, start, key, counter, false)
+                } else if f.release == identity.release {
                     if tau < f.tau || (tau == f.tau && tau != TAU_SATURATED) {
                         if f.single && counter == f.counter.wrapping_sub(1) & 0xF && now > f.at_us {
                             // The report the release's first accepted one skipped, arriving
@@ -642,17 +738,18 @@ impl Decoder {
                         key,
                         counter,
                         single: false,
+                        unverified: false,
                         lag_us,
                         late_start_us: None,
                     }
                 } else {
-                    self.first_of_release(&s, identity, start, slack)?;
-                    FaultTrack::first(now, identity.release, tau, start, key, counter)
+                    let unverified = self.first_of_release(&s, identity, start, slack)?;
+                    FaultTrack::first(now, identity.release, tau, start, key, counter, unverified)
                 }
             }
             None => {
-                self.first_of_release(&s, identity, start, slack)?;
-                FaultTrack::first(now, identity.release, tau, start, key, counter)
+                let unverified = self.first_of_release(&s, identity, start, slack)?;
+                FaultTrack::first(now, identity.release, tau, start, key, counter, unverified)
             }
         };
         // Its counter must be newer than the last accepted report's, and reports the sender
@@ -665,9 +762,34 @@ impl Decoder {
                 return Err(FrameError::Stale { last: u16::from(last), got: u16::from(counter) });
             }
         }
+        // The counter tells how many reports the sender sent since the receiver last learnt its
+        // count (the last status frame or accepted report), modulo 16; the rate bound caps how
+        // many it can have sent. A counter that no count within the cap explains is flagged:
+        // behind the count (a report sent before that frame: old, unless it is the report that
+        // frame overtook) or further ahead than the time allows.
+        let d = counter.wrapping_sub(s.next_fault) & 0xF;
+        let learnt = s.fault.map_or(s.at_us, |f| f.at_us.max(s.at_us));
+        let possible = now.saturating_sub(learnt).saturating_add(2 * TOLERANCE_US) / FAULT_MIN_GAP_US;
+        let overtaken = s.owed_fault == Some(counter)
+            || (d == 15 && s.last_fault_counter.is_none() && now.saturating_sub(s.at_us) <= TOLERANCE_US);
+        if !replaced && !overtaken && u64::from(d) > possible {
+            return Err(if d >= 8 {
+                FrameError::Stale { last: u16::from(s.next_fault.wrapping_sub(1) & 0xF), got: u16::from(counter) }
+            } else {
+                FrameError::RateExceeded { gap_ms: ms(diff(now, learnt).max(0)) as u32 }
+            });
+        }
+        let snapshot = Unconfirmed {
+            fault: s.fault,
+            last_fault_counter: s.last_fault_counter,
+            next_fault: s.next_fault,
+            owed_fault: s.owed_fault,
+            reports: 0,
+        };
+        let mut unconfirmed = s.unconfirmed.unwrap_or(snapshot);
+        unconfirmed.reports = unconfirmed.reports.saturating_add(1);
         // A report the last status frame counted and this is not: lost.
         let mut lost = s.owed_fault.take().map_or(0, |o| u8::from(o != counter));
-        let d = counter.wrapping_sub(s.next_fault) & 0xF;
         if d < 8 {
             // (A report the status frame overtook is the owed one: d = 15.)
             lost += d;
@@ -685,11 +807,13 @@ impl Decoder {
         }
         // No heartbeat on time vouches for it: accepted (it may be genuine: a status frame was
         // lost), but not current (a delayed stream, whose heartbeats are flagged, shows here).
-        rec.stale = overdue > 0;
+        rec.stale = overdue > 0 || track.unverified;
         if undo_release {
             self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
         }
         s.fault = Some(track);
+        // (The report the status frame overtook was counted by it already.)
+        s.unconfirmed = if overtaken && s.unconfirmed.is_none() { None } else { Some(unconfirmed) };
         if in_lost {
             self.lost = Some(s);
             rec.stale = true;
@@ -710,8 +834,11 @@ impl Decoder {
     }
 
     /// The first report of a release must place its release command in the window the
-    /// heartbeats allow.
-    fn first_of_release(&self, s: &Session, identity: Identity, start: i64, slack: i64) -> Result<(), FrameError> {
+    /// heartbeats allow. `Ok(true)`: the window has no lower bound (no heartbeat of the
+    /// previous release seen) and the start lies before the monitor's power-up as the session's
+    /// first heartbeat counted it: the report cannot be vouched for (it may be genuine, from a
+    /// monitor whose 68-minute counter had wrapped).
+    fn first_of_release(&self, s: &Session, identity: Identity, start: i64, slack: i64) -> Result<bool, FrameError> {
         let (earliest, latest) = if identity.release == s.identity.release {
             (s.release_before_us, Some(s.release_since_us))
         } else {
@@ -732,7 +859,7 @@ impl Decoder {
                 return Err(FrameError::Untimely { off_ms: -ms(off) });
             }
         }
-        Ok(())
+        Ok(earliest.is_none() && start < s.power_up_us.saturating_sub(slack))
     }
 }
 

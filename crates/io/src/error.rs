@@ -10,6 +10,23 @@ use std::fmt;
 /// 1: the run failed; 2 is taken by command-line usage errors).
 pub const SKIPPED_EXIT_CODE: u8 = 3;
 
+/// Exit status of a check that ran to its end on readable input and found what it checks for
+/// wrong (`can decode --strict`: a flagged, lost or stale frame, or no frame at all). Distinct
+/// from 1 so that a CI job can tell "the link is bad" from "the log could not be read".
+pub const CHECK_FAILED_EXIT_CODE: u8 = 4;
+
+/// The error of a check that failed ([`CHECK_FAILED_EXIT_CODE`]): what it found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct CheckFailed(pub String);
+
+impl fmt::Display for CheckFailed {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for CheckFailed {}
+
 /// A problem with an input file: the file, the 1-based line (0 when it concerns the whole file)
 /// and what is wrong.
 #[derive(Debug, Clone, PartialEq, Eq)]

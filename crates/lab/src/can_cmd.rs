@@ -8,8 +8,9 @@
 //! an invalid signal value, a stale, untimely or too frequent frame (freshness, see
 //! [`pbm::can::decoder`]), or log lines that are not frames, are flagged (`!!` lines) and
 //! skipped; lost frames are shown too. It never stops on bad input; it ends with a summary of
-//! what it flagged and exits 0, or 1 with `--strict` when anything was flagged or lost (for CI
-//! replays). A silence of the heartbeat (status frame) longer than
+//! what it flagged and exits 0; with `--strict` (for CI replays) it fails with
+//! [`pbm_io::error::CHECK_FAILED_EXIT_CODE`] (4) when anything was flagged or lost, a report was
+//! stale, or the log held no frame at all (an unreadable file stays exit 1). A silence of the heartbeat (status frame) longer than
 //! [`pbm::can::HEARTBEAT_TIMEOUT_US`] is shown as a `--` line (the report held so far is stale
 //! from then on) and the next plausible heartbeat opens a new session, so the logs of several
 //! releases or locomotives written one after another (`host-sim replay DATASET --can-log`)
@@ -27,6 +28,7 @@ use pbm::sensor::{adc_from_bar, SensorFault};
 use pbm::{AdcCounts, BarG, FaultClass, TwinParams};
 use pbm_io::can_bus::{FrameSink, FrameSource};
 use pbm_io::can_log::{format_frame, read_log, CanRecorder, CandumpWriter, LogError, DEFAULT_IFACE};
+use pbm_io::error::CheckFailed;
 use rand_core::SeedableRng;
 use std::collections::BTreeMap;
 use std::io::{BufRead, Write};
@@ -55,7 +57,8 @@ pub struct DecodeOptions {
     pub status: bool,
     /// Output format.
     pub format: DecodeFormat,
-    /// Fail (exit 1) when anything was flagged or lost.
+    /// Fail ([`pbm_io::error::CHECK_FAILED_EXIT_CODE`]) when anything was flagged or lost, a
+    /// fault report was stale, or there was no frame to check.
     pub strict: bool,
     /// Check integrity only (identifier, length, CRC, signal values), not freshness: for codec
     /// sweeps whose frames are no stream. A fault report's CRC is checked against the identity
@@ -128,6 +131,9 @@ pub struct DecodeSummary {
     /// Fault reports that arrived while a heartbeat was overdue or lost: shown as stale, never
     /// as current ([`pbm::can::Reception::stale`]).
     pub stale_reports: u64,
+    /// Fault reports accepted, then withdrawn because the monitor's heartbeat did not count
+    /// them ([`pbm::can::Reception::withdrawn`]).
+    pub withdrawn: u64,
 }
 
 impl DecodeSummary {
@@ -136,9 +142,16 @@ impl DecodeSummary {
         self.flagged.values().sum()
     }
 
-    /// Everything `--strict` fails on: flagged frames, lost frames, superseded sessions.
+    /// Everything `--strict` fails on: flagged frames, lost frames, superseded sessions, and
+    /// fault reports shown stale (no heartbeat on time vouched for them: a replay of an old
+    /// session's reports after the live one ended is stale, not flagged).
     pub fn problems(&self) -> u64 {
-        self.flagged_total() + self.lost_status + self.lost_fault_reports + self.superseded
+        self.flagged_total()
+            + self.lost_status
+            + self.lost_fault_reports
+            + self.superseded
+            + self.stale_reports
+            + self.withdrawn
     }
 }
 
@@ -161,6 +174,9 @@ impl std::fmt::Display for DecodeSummary {
         }
         if self.superseded > 0 {
             write!(f, "; {} replayed sessions superseded", self.superseded)?;
+        }
+        if self.withdrawn > 0 {
+            write!(f, "; {} fault reports withdrawn (not counted by the monitor's heartbeat)", self.withdrawn)?;
         }
         if self.stale_reports > 0 {
             write!(f, "; {} fault reports with the heartbeat overdue (shown stale)", self.stale_reports)?;
@@ -314,6 +330,9 @@ pub struct CabDisplay<W: Write> {
     start_us: Option<u64>,
     /// Receive time, locomotive and release of the fault report held on the display.
     held: Option<(u64, Option<Identity>)>,
+    /// For the last accepted fault reports (up to 16), what was held before each: a withdrawal
+    /// ([`pbm::can::Reception::withdrawn`]) goes back to it.
+    held_before: std::collections::VecDeque<Option<(u64, Option<Identity>)>>,
 }
 
 impl<W: Write> CabDisplay<W> {
@@ -329,6 +348,7 @@ impl<W: Write> CabDisplay<W> {
             codec_identity: Identity::default(),
             start_us: None,
             held: None,
+            held_before: std::collections::VecDeque::new(),
         }
     }
 
@@ -368,6 +388,7 @@ impl<W: Write> CabDisplay<W> {
             identity: Some(self.codec_identity),
             superseded: false,
             stale: false,
+            withdrawn: 0,
         }
     }
 
@@ -410,6 +431,38 @@ impl<W: Write> CabDisplay<W> {
                 )?;
             }
         }
+        if reception.withdrawn > 0 {
+            self.summary.withdrawn += u64::from(reception.withdrawn);
+            let mut back = None;
+            for _ in 0..reception.withdrawn {
+                if let Some(h) = self.held_before.pop_back() {
+                    back = Some(h);
+                }
+            }
+            let first = self.held;
+            if let Some(h) = back {
+                self.held = h;
+            }
+            if text {
+                let shown = match self.held {
+                    Some((at, id)) => {
+                        format!(
+                            "the report of {} (at {} s) is shown again",
+                            identity_text(id),
+                            time_text(self.rel(at)).trim_start()
+                        )
+                    }
+                    None => "no report is shown".to_owned(),
+                };
+                writeln!(
+                    self.out,
+                    "{} s  !! withdrawn: {} fault report(s) up to {} s that the monitor's heartbeat does not count (not sent by it); {shown}",
+                    time_text(t),
+                    reception.withdrawn,
+                    first.map_or_else(|| "-".to_owned(), |(at, _)| time_text(self.rel(at)).trim_start().to_owned())
+                )?;
+            }
+        }
         if reception.lost_status > 0 || reception.lost_fault_reports > 0 {
             self.summary.lost_status += u64::from(reception.lost_status);
             self.summary.lost_fault_reports += u64::from(reception.lost_fault_reports);
@@ -439,6 +492,10 @@ impl<W: Write> CabDisplay<W> {
             }
             (Ok(Report::Fault(r)), DecodeFormat::Text) => {
                 self.summary.fault_reports += 1;
+                if self.held_before.len() == 16 {
+                    self.held_before.pop_front();
+                }
+                self.held_before.push_back(self.held);
                 self.held = Some((time_us, id));
                 writeln!(self.out, "{}", fault_line(t, id, r))?;
             }
@@ -546,14 +603,22 @@ fn run_decode(a: &DecodeOptions) -> Result<()> {
     }
     let summary = display.finish()?;
     eprintln!("{summary}");
-    if a.strict && summary.problems() > 0 {
-        bail!(
-            "--strict: {} frames flagged, {} status frames and {} fault reports lost, {} replayed sessions",
-            summary.flagged_total(),
-            summary.lost_status,
-            summary.lost_fault_reports,
-            summary.superseded
-        );
+    if a.strict {
+        if summary.frames == 0 {
+            return Err(CheckFailed("--strict: the log holds no frame, so nothing was checked".into()).into());
+        }
+        if summary.problems() > 0 {
+            return Err(CheckFailed(format!(
+                "--strict: {} frames flagged, {} status frames and {} fault reports lost, {} replayed sessions, {} stale and {} withdrawn fault reports",
+                summary.flagged_total(),
+                summary.lost_status,
+                summary.lost_fault_reports,
+                summary.superseded,
+                summary.stale_reports,
+                summary.withdrawn
+            ))
+            .into());
+        }
     }
     Ok(())
 }

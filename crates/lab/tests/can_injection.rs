@@ -124,15 +124,40 @@ fn decode(stream: &[Entry], event: bool, what: &str) -> Outcome {
     let mut d = Decoder::new();
     let mut o = Outcome { events: usize::from(event), ..Outcome::default() };
     let mut noticed = false;
+    // Roles of the last accepted fault reports: a withdrawal (the heartbeat's count shows the
+    // monitor never sent them) flags an injected one after the fact, and rejects a genuine one.
+    let mut accepted = std::collections::VecDeque::new();
     for e in stream {
         let r = d.receive(e.t, &e.f);
         noticed |= r.lost_status > 0 || r.lost_fault_reports > 0 || r.superseded;
+        for _ in 0..r.withdrawn {
+            match accepted.pop_back() {
+                Some(Role::Injected) => {
+                    o.flagged += 1;
+                    eprintln!("{what}: injected report withdrawn at {}", e.t.saturating_sub(LOG_EPOCH_US));
+                }
+                Some(_) => {
+                    o.rejected += 1;
+                    eprintln!("{what}: genuine report withdrawn at {}", e.t.saturating_sub(LOG_EPOCH_US));
+                }
+                None => {}
+            }
+        }
+        if matches!(r.result, Ok(pbm::can::Report::Fault(_))) {
+            if accepted.len() == 16 {
+                accepted.pop_front();
+            }
+            accepted.push_back(e.role);
+        }
         match e.role {
             Role::Injected => {
                 o.injected += 1;
                 o.flagged += usize::from(r.result.is_err());
                 if r.result.is_ok() {
-                    eprintln!("{what}: injected frame accepted at {}: {r:?}", e.t.saturating_sub(LOG_EPOCH_US));
+                    eprintln!(
+                        "{what}: injected frame accepted (unless withdrawn later) at {}: {r:?}",
+                        e.t.saturating_sub(LOG_EPOCH_US)
+                    );
                 }
             }
             Role::Genuine | Role::Paired => {
@@ -217,6 +242,14 @@ fn table_row(table: &mut BTreeMap<String, Outcome>, key: &str, o: Outcome) {
 }
 
 fn print_table(title: &str, table: &BTreeMap<String, Outcome>) {
+    let total = print_rows(title, table);
+    assert_eq!(total.flagged, total.injected, "every injected frame flagged");
+    assert_eq!(total.detected, total.events, "every deletion and resequenced pair detected");
+    assert_eq!(total.rejected, 0, "no genuine frame rejected");
+}
+
+/// Prints the table; returns its total.
+fn print_rows(title: &str, table: &BTreeMap<String, Outcome>) -> Outcome {
     println!("\n{title}");
     println!("{:<58} {:>9} {:>9} {:>8} {:>9}", "injection", "injected", "flagged", "events", "genuine rejected");
     let mut total = Outcome::default();
@@ -238,9 +271,7 @@ fn print_table(title: &str, table: &BTreeMap<String, Outcome>) {
         format!("{}/{}", total.detected, total.events),
         format!("{}/{}", total.rejected, total.genuine)
     );
-    assert_eq!(total.flagged, total.injected, "every injected frame flagged");
-    assert_eq!(total.detected, total.events, "every deletion and resequenced pair detected");
-    assert_eq!(total.rejected, 0, "no genuine frame rejected");
+    total
 }
 
 fn logs() -> Vec<(&'static str, Log)> {
@@ -476,6 +507,77 @@ fn insertions_are_flagged() {
         }
     }
     print_table("Insertions", &table);
+}
+
+/// Reports of another locomotive whose CRC passes for the followed identity: what one of the
+/// CRC's 15 identity collisions (another locomotive *and* another release at one of 15 fixed
+/// distances; can/README.md) would let through to the freshness rules, and what a random
+/// corruption that keeps the CRC looks like. The other recording's reports keep their content,
+/// counter and time since release and are re-encoded with the identity of the status frame
+/// before the insertion point, then inserted at random moments of the followed session. The CRC
+/// no longer helps; the counter and time rules must flag them. Measured, with a bound.
+#[test]
+fn crc_passing_foreign_reports_are_flagged_by_freshness() {
+    use pbm::can::codec::{decode_signals, encode_fault, frame_payload, status_link, MessageKind, Report};
+    let mut x = 0xD1B5_4A32_D192_ED03u64;
+    let mut next = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x
+    };
+    let foreign_reports = |log: &Log| -> Vec<(pbm::report::FaultReport, u8)> {
+        log.iter()
+            .filter_map(|(_, f)| {
+                let (kind, bits) = frame_payload(f).ok()?;
+                if kind != MessageKind::Fault {
+                    return None;
+                }
+                match decode_signals(kind, bits).ok()? {
+                    Report::Fault(r) => Some((r, pbm::can::codec::counter_of(kind, bits) as u8)),
+                    Report::Status(_) => None,
+                }
+            })
+            .collect()
+    };
+    let (small, demo) = (small_log(), demo_log());
+    let mut total = Outcome::default();
+    let mut table = BTreeMap::new();
+    for (name, log) in logs() {
+        let foreign = foreign_reports(if name == "small" { &demo } else { &small });
+        assert!(!foreign.is_empty());
+        for i in 0..200 {
+            // A point inside a session, after its first status frame.
+            let k = 1 + (next() as usize) % (log.len() - 1);
+            let Some(last_status) = log[..k].iter().rev().find(|(_, f)| is_status(f)) else { continue };
+            if log[k].0 - last_status.0 > 3_000_000 {
+                continue; // a silence: no session to attribute the report to
+            }
+            let identity = match frame_payload(&last_status.1) {
+                Ok((_, bits)) => status_link(bits).identity,
+                Err(_) => continue,
+            };
+            let (report, counter) = foreign[(next() as usize) % foreign.len()];
+            let f = encode_fault(&report, counter, identity);
+            let timing = if i % 2 == 0 { Timing::At } else { Timing::Between };
+            let o =
+                decode(&inject_at(&log, k, f, log[k].0, timing), false, &format!("{name} crc-passing foreign at {k}"));
+            total += o;
+            table_row(&mut table, &format!("{name}: foreign report, CRC passing"), o);
+        }
+    }
+    print_rows("CRC-passing reports of another locomotive (identity collision)", &table);
+    eprintln!(
+        "CRC-passing foreign reports: {} of {} flagged (or withdrawn), {} of {} genuine frames rejected",
+        total.flagged, total.injected, total.rejected, total.genuine
+    );
+    // Measured on another seed with 15 times the insertions (8942): 8931 flagged, 11 genuine
+    // frames rejected of 7.0 million (a foreign report at the very moment of the genuine one
+    // and with its time since release: the genuine one is then the one flagged). The bounds
+    // leave room for such coincidences and no more.
+    assert!(total.injected >= 550, "{total:?}");
+    assert!(total.flagged * 1000 >= total.injected * 995, "{total:?}");
+    assert!(total.rejected * 100_000 <= total.genuine, "{total:?}");
 }
 
 /// Resequenced pairs: two consecutive frames of the same identifier swapped, their time stamps
