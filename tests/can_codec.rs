@@ -1249,3 +1249,62 @@ fn a_monitor_whose_counter_wrapped_is_believed_from_its_second_report() {
     }
     assert!(faults >= 2);
 }
+
+// ---- second black-box attack test (2026-11-27): session-opening lock-outs -------------------
+
+fn status_of(counter: u16, locomotive: u8, release: u8) -> CanFrame {
+    encode_status(&example_status(), StatusLink { counter, identity: Identity { locomotive, release }, fault_count: 0 })
+}
+
+/// A restarted monitor whose heartbeats 1–3 are lost right after its first: its session timed
+/// out while tentative, and heartbeat 4 was taken for a frame from before the silence (its
+/// release was remembered from the single tentative frame); every later one was flagged.
+#[test]
+fn a_new_session_that_loses_its_next_heartbeats_is_reopened() {
+    let mut d = Decoder::new();
+    for c in 0..5u16 {
+        assert!(d.receive(u64::from(c) * 1_000_000, &status_of(50 + c, 1, 2)).result.is_ok());
+    }
+    // 10 s later another monitor starts; heartbeats 1, 2 and 3 are lost.
+    let t0 = 14_000_000u64;
+    assert!(d.receive(t0, &status_of(0, 2, 2)).result.is_ok());
+    for c in 4..12u16 {
+        let r = d.receive(t0 + u64::from(c) * 1_000_000, &status_of(c, 2, 2));
+        assert!(r.result.is_ok(), "heartbeat {c}: {r:?}");
+    }
+}
+
+/// A display that joins mid-stream and first hears an old heartbeat of the same monitor (a
+/// replay, or a gateway flushing a stale buffer): the live heartbeats were all flagged. Now the
+/// first live one (0.3 s later) is flagged, and the next replaces the tentative session.
+#[test]
+fn an_old_heartbeat_heard_first_does_not_lock_out_the_live_monitor() {
+    let mut d = Decoder::new();
+    assert!(d.receive(0, &status_of(60, 7, 3)).result.is_ok(), "the old frame opens a tentative session");
+    let mut flagged = 0;
+    let mut superseded = 0;
+    for k in 0..10u16 {
+        let r = d.receive(300_000 + u64::from(k) * 1_000_000, &status_of(100 + k, 7, 4));
+        flagged += usize::from(r.result.is_err());
+        superseded += usize::from(r.superseded);
+    }
+    assert_eq!((flagged, superseded), (1, 1));
+}
+
+/// A status frame replayed 4096 s later, 0.3 s before its genuine twin, while the release number
+/// had moved on (4 then, 40 now): it was accepted as a rise of the release number, and when the
+/// live monitor went on with release 41 every later frame was flagged. Now the genuine twin is
+/// flagged (as documented for lag-4096 replays) and the frames after it are accepted.
+#[test]
+fn a_lag_4096_replay_of_an_old_release_does_not_lock_out_the_heartbeat() {
+    let mut d = Decoder::new();
+    for k in 0..8u16 {
+        assert!(d.receive(u64::from(k) * 1_000_000, &status_of(90 + k, 7, 40)).result.is_ok());
+    }
+    let _replay = d.receive(7_700_000, &status_of(98, 7, 4));
+    assert!(d.receive(8_000_000, &status_of(98, 7, 40)).result.is_err(), "the twin after the replay");
+    for k in 9..20u16 {
+        let r = d.receive(u64::from(k) * 1_000_000, &status_of(90 + k, 7, 41));
+        assert!(r.result.is_ok(), "{k}: {r:?}");
+    }
+}

@@ -375,7 +375,7 @@ impl Decoder {
                     // not fit its clock replaces it.
                     Err(FrameError::Untimely { .. })
                         if s.tentative
-                            && link.identity.release == s.identity.release
+                            && release_not_before(link.identity.release & 0x3F, s.identity.release)
                             && (1..COUNTER_MOD / 2).contains(&(link.counter.wrapping_sub(s.counter) % COUNTER_MOD))
                             && diff(now, s.at_us) >= (STATUS_PERIOD_US - TOLERANCE_US) as i64 =>
                     {
@@ -461,6 +461,14 @@ impl Decoder {
         if self.seen & (1 << i) != 0 && (release == newest || !release_not_before(release, newest)) {
             return false;
         }
+        // Newer than the session it would replace too (which may be a tentative one, whose
+        // release is not remembered as the newest).
+        if before.is_some_and(|p| {
+            p.identity.locomotive == link.identity.locomotive & 0x3F
+                && (release == p.identity.release || !release_not_before(release, p.identity.release))
+        }) {
+            return false;
+        }
         before.is_none_or(|p| {
             let silence = now.saturating_sub(p.at_us);
             u64::from(link.counter) * STATUS_PERIOD_US <= silence.saturating_add(TOLERANCE_US)
@@ -488,7 +496,12 @@ impl Decoder {
             owed_fault: None,
             unconfirmed: None,
         });
-        self.remember(link);
+        // A tentative session rests on one frame, which may be a replay: what it says of the
+        // locomotive's newest release is believed only once a second heartbeat confirms it
+        // (else one replayed frame of a newer-looking release locked the sender out).
+        if !tentative {
+            self.remember(link);
+        }
         rec.identity = Some(identity);
     }
 
@@ -500,18 +513,20 @@ impl Decoder {
         let release = link.identity.release & 0x3F;
         if c.undo_release {
             // The rise of the release number rested on one heartbeat, and the sender goes on
-            // with the release before it: that heartbeat was a corruption the CRC missed.
+            // with the release before it (or on from it): that heartbeat was a corruption the
+            // CRC missed, or a replay.
             if let Some((r, before, since)) = s.release_prev.take() {
                 s.identity.release = r;
                 s.release_before_us = before;
                 s.release_since_us = since;
             }
-        } else if release != s.identity.release {
+        }
+        if release != s.identity.release {
             s.release_prev = Some((s.identity.release, s.release_before_us, s.release_since_us));
             s.release_before_us = Some(s.at_us);
             s.release_since_us = now;
             s.identity.release = release;
-        } else {
+        } else if !c.undo_release {
             s.release_prev = None;
         }
         // Fault reports the sender counted that never arrived here. The last one counted may
@@ -946,7 +961,9 @@ fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<Continues, F
     let release = link.identity.release & 0x3F;
     let mut undo_release = false;
     if !release_not_before(release, s.identity.release) {
-        if s.release_prev.is_some_and(|(r, ..)| r == release) {
+        // Back to the release before a rise that rests on one heartbeat, or on from it: that
+        // heartbeat was a corruption the CRC missed, or a replay (of a release 4096 s old).
+        if s.release_prev.is_some_and(|(r, ..)| release_not_before(release, r)) {
             undo_release = true;
         } else {
             return Err(FrameError::WrongRelease { expected: s.identity.release, got: link.identity.release });
