@@ -97,11 +97,13 @@ fn sparkline(records: &[ReleaseRecord], p: Parameter) -> String {
         e = sy(p.threshold())
     );
     let line: Vec<String> = pts.iter().map(|&(x, y)| format!("{:.1},{:.1}", sx(x), sy(y))).collect();
-    let _ = write!(
-        svg,
-        "<polyline fill=\"none\" stroke=\"{POINTS}\" stroke-width=\"1.2\" points=\"{}\"/></svg>",
-        line.join(" ")
-    );
+    let _ =
+        write!(svg, "<polyline fill=\"none\" stroke=\"{POINTS}\" stroke-width=\"1.2\" points=\"{}\"/>", line.join(" "));
+    // The latest value, marked.
+    if let Some(&(x, y)) = pts.last() {
+        let _ = write!(svg, "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"2.5\" fill=\"{POINTS}\"/>", sx(x), sy(y));
+    }
+    svg.push_str("</svg>");
     svg
 }
 
@@ -348,7 +350,14 @@ pub fn fleet_section(db: &FleetDb, rule: &WarningRule, statuses: &[LocoStatus], 
         let records = trend_series(&stored);
         let recent = RecentVerdicts::of(&stored);
         let latest = |p: Parameter| s.trends[p as usize].map(|t| t.latest);
-        let verdict = s.latest_verdict.as_ref().map_or_else(|| "–".to_owned(), |(v, _)| verdict_words(v).to_owned());
+        let verdict = match (s.latest_verdict.as_ref(), followed(&stored).last()) {
+            (Some((v, _)), Some(r)) if FaultClass::from_label(v).is_none() => match r.no_diagnosis.as_deref() {
+                Some(why) => format!("not diagnosed: {}", why.split(" (").next().unwrap_or(why)),
+                None => verdict_words(v).to_owned(),
+            },
+            (Some((v, _)), _) => verdict_words(v).to_owned(),
+            (None, _) => "–".to_owned(),
+        };
         let mix: Vec<String> = s.verdicts.iter().map(|(v, n)| format!("{} {n}", verdict_words(v))).collect();
         let mut warnings: Vec<String> = s.undiagnosed.iter().filter(|u| u.sensor).map(|u| u.describe()).collect();
         warnings.extend(s.warnings.iter().map(|w| match s.doubt(w) {
