@@ -8,9 +8,8 @@
 `demo` checks the demo's index page (the fleet table first, then the rest of the report), `locomotive`
 one locomotive page. Both check: every required section present and non-empty, every inline SVG
 drawing marks, every table with filled body rows, no script or external resource, the screenshot
-not blank, and no horizontal overflow at 1280 px. The fleet table must link every locomotive to a
-page that exists in REPORT_DIR; on the fleet table and the locomotive pages, plot text must be at
-least 11 px. `overflow` only runs the overflow check (exit status 1 when the page overflows).
+not blank, plot text of at least 11 px, and no horizontal overflow at 1280 px. The fleet table must
+come first and link every locomotive to a page that exists in REPORT_DIR. `overflow` only runs the overflow check (exit status 1 when the page overflows).
 
 Overflow: SCROLL.png is a 1280 px wide screenshot taken with scrollbars. When the page is wider
 than the window, Chromium draws a horizontal scrollbar along the bottom of the viewport (a band of
@@ -193,8 +192,7 @@ def main():
     for i, (marks, section, font) in enumerate(p.svgs):
         if marks < 3:
             errors.append(f"plot {i + 1} draws nothing ({marks} marks)")
-        checked = kind == "locomotive" or section == "fleet"
-        if checked and font < MIN_PLOT_TEXT_PX:
+        if font < MIN_PLOT_TEXT_PX:
             errors.append(f"plot {i + 1} (section {section}) has {font} px text, below {MIN_PLOT_TEXT_PX}")
     for i, (rows, cells, _) in enumerate(p.tables):
         if rows == 0 or cells == 0:

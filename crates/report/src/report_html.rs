@@ -200,7 +200,7 @@ th{background:#eef2f6}td.num{text-align:right}.mono{font-family:ui-monospace,Con
 td{overflow-wrap:anywhere}table{max-width:100%}\
 figure{margin:10px 0 16px}figcaption{color:#4a5663;font-size:.9em;margin-top:2px}\
 figure svg{max-width:100%;height:auto;border:1px solid #e1e6eb}\
-.gallery{display:flex;flex-wrap:wrap;gap:12px}.gallery figure{flex:0 1 calc(50% - 6px);min-width:420px;margin:4px 0}\
+.gallery{display:flex;flex-wrap:wrap;gap:12px}.gallery figure{flex:0 1 auto;margin:4px 0}\
 td svg{display:block;margin-top:2px}\
 td a,p a{color:#1f5fa8}\
 pre{background:#f3f5f7;border:1px solid #dde3e9;padding:8px;overflow-x:auto;font-size:.85em}\
@@ -266,11 +266,35 @@ fn render_table(out: &mut String, t: &Table) {
     out.push_str("</tbody></table>\n");
 }
 
+/// Smallest text in an inlined plot, px: readable when printed.
+pub const MIN_PLOT_TEXT_PX: f64 = 12.0;
+
+/// `svg` with every `font-size="…"` below [`MIN_PLOT_TEXT_PX`] raised to it (the plotting
+/// library's default axis text is under 10 px).
+pub fn readable_svg(svg: &str) -> String {
+    const KEY: &str = "font-size=\"";
+    let mut out = String::with_capacity(svg.len());
+    let mut rest = svg;
+    while let Some(at) = rest.find(KEY) {
+        out.push_str(&rest[..at + KEY.len()]);
+        rest = &rest[at + KEY.len()..];
+        let end = rest.find('"').unwrap_or(rest.len());
+        let value = &rest[..end];
+        match value.trim_end_matches("px").parse::<f64>() {
+            Ok(v) if v < MIN_PLOT_TEXT_PX => out.push_str(&MIN_PLOT_TEXT_PX.to_string()),
+            _ => out.push_str(value),
+        }
+        rest = &rest[end..];
+    }
+    out.push_str(rest);
+    out
+}
+
 fn render_figure(out: &mut String, svg: &str, caption: &str) {
     out.push_str("<figure>");
     // Only the <svg> element is inlined; a document without one becomes a visible note.
     match svg_element(svg) {
-        Some(s) => out.push_str(s),
+        Some(s) => out.push_str(&readable_svg(s)),
         None => out.push_str("<p class=\"note\">(plot missing)</p>"),
     }
     if !caption.is_empty() {
@@ -497,6 +521,15 @@ mod tests {
             Some("<svg a=\"1\"><path/></svg>")
         );
         assert_eq!(svg_element("no svg"), None);
+    }
+
+    #[test]
+    fn plot_text_is_raised_to_the_readable_minimum() {
+        let svg = "<svg><text font-size=\"9.677\">a</text><text font-size=\"16\">b</text><g font-size=\"10px\"/></svg>";
+        assert_eq!(
+            readable_svg(svg),
+            "<svg><text font-size=\"12\">a</text><text font-size=\"16\">b</text><g font-size=\"12\"/></svg>"
+        );
     }
 
     #[test]
