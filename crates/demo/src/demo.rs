@@ -1224,12 +1224,12 @@ fn audits_side_by_side(r: &DemoResults) -> Table {
         Ok((data, m)) => {
             let hours = data.last().map_or(0.0, |x| x.t_s / 3600.0);
             real.push(format!(
-                "{:.1} h of the reservoir pressure of a Porto metro train's air production unit, one sample about every                  10 s ({} samples), with the compressor's load signal",
+                "{:.1} h of the reservoir pressure of a Porto metro train's air production unit, one sample about every 10 s ({} samples), with the compressor's load signal",
                 hours,
                 data.len()
             ));
             real.push(
-                "the reservoir model built from the twin's parts: the compressor as an air source while it is loaded,                  consumption and leakage as an orifice to atmosphere, adiabatic air"
+                "the reservoir model built from the twin's parts: the compressor as an air source while it is loaded, consumption and leakage as an orifice to atmosphere, adiabatic air"
                     .to_owned(),
             );
             let named = if m.chosen.effects.is_empty() {
@@ -1260,14 +1260,14 @@ fn audits_side_by_side(r: &DemoResults) -> Table {
             real.push(format!("{:.4} bar per sample (estimated)", m.sigma));
             real.push(match &m.cycle_floor {
                 Some(f) => format!(
-                    "the {} compressor cycles differ from each other by {:.3} bar RMS ({:.0}× the noise: air consumption                      the record does not hold, which no model driven by the load signal alone can follow); the error                      common to all cycles is {:.3} bar RMS, {}",
+                    "the {} compressor cycles differ from each other by {:.3} bar RMS ({:.0}× the noise: air consumption the record does not hold, which no model driven by the load signal alone can follow); the error common to all cycles is {:.3} bar RMS, {}",
                     f.cycles,
                     f.spread_bar,
                     f.spread_bar / m.sigma,
                     f.systematic_bar,
                     if f.systematic() {
                         format!(
-                            "beyond that variation at {:.0} % of the times (chance at most {:.1} %): the model still errs                              the same way in every cycle",
+                            "beyond that variation at {:.0} % of the times (chance at most {:.1} %): the model still errs the same way in every cycle",
                             100.0 * f.share_beyond,
                             100.0 * f.p_at_most()
                         )
@@ -1290,14 +1290,14 @@ fn audits_side_by_side(r: &DemoResults) -> Table {
 fn section_audit(r: &DemoResults) -> Result<Section> {
     let mut s = Section::new("audit", "Model-discrepancy audits: synthetic releases and a real record");
     s.push(Block::Para(
-        "The audit asks whether the model misses a physical effect, and which: it fits the model with each candidate          effect of its library added, keeps an effect only when the data need it, and compares what is left with the          measurement noise. It ran twice: on generated brake releases with an effect hidden in them (the answer is          known), and on a real compressed-air record, where it is not."
+        "The audit asks whether the model misses a physical effect, and which: it fits the model with each candidate effect of its library added, keeps an effect only when the data need it, and compares what is left with the measurement noise. It ran twice: on generated brake releases with an effect hidden in them (the answer is known), and on a real compressed-air record, where it is not."
             .into(),
     ));
     s.push(Block::Table(audits_side_by_side(r)));
     if let Ok((rows, m)) = &r.metro {
         s.push(Block::Figure {
             svg: pbm_lab::metro::curves_svg(rows, m)?,
-            caption: "Real record: the measured reservoir pressure, the adiabatic base model and the model with the                       effects the audit named, over the whole record."
+            caption: "Real record: the measured reservoir pressure, the adiabatic base model and the model with the effects the audit named, over the whole record."
                 .into(),
         });
         s.push(Block::Figure {
