@@ -297,12 +297,9 @@ pub fn confidence_cell(s: &LocoStatus, recent: &RecentVerdicts) -> Cell {
         .with_background((0xff, 0xf2, 0xb3));
     }
     match (latest, named) {
-        (_, Some((v, Some(c)))) => Cell::text(format!(
-            "{c} % {} ({} of the last {} diagnosed releases agree)",
-            verdict_words(v),
-            recent.agree,
-            recent.diagnosed
-        )),
+        (_, Some((v, Some(c)))) => {
+            Cell::text(format!("{c} % {}; {} of the last {} agree", verdict_words(v), recent.agree, recent.diagnosed))
+        }
         (Some((v, _)), _) if v == crate::record::CANNOT_DIAGNOSE => {
             Cell::text("none: the latest release was not diagnosed".to_owned())
         }
@@ -383,7 +380,7 @@ pub fn fleet_section(db: &FleetDb, rule: &WarningRule, statuses: &[LocoStatus], 
             Cell::text(fmt_opt(latest(Parameter::Orifice), 3)),
             Cell::text(fmt_opt(latest(Parameter::Supply), 3)),
             warn_cell,
-            Cell::text(parameter_words(key)).with_svg(sparkline(&records, key)),
+            Cell::text(key.name()).with_svg(sparkline(&records, key)),
         ]);
     }
     if statuses.is_empty() {

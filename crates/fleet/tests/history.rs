@@ -407,7 +407,7 @@ fn the_fleet_table_says_when_the_recent_releases_disagree() {
     let mut s0 = s[0].clone();
     s0.latest_verdict = Some(("normal".into(), Some(97)));
     let cell = pbm_fleet::report::confidence_cell(&s0, &settled);
-    assert_eq!(cell.text, "97 % healthy (10 of the last 10 diagnosed releases agree)");
+    assert_eq!(cell.text, "97 % healthy; 10 of the last 10 agree");
 }
 
 #[test]

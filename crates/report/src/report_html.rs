@@ -197,7 +197,7 @@ table{border-collapse:collapse;margin:8px 0 14px;font-size:.92em}\
 caption{text-align:left;font-weight:600;padding:4px 0;color:#2c3a47}\
 th,td{border:1px solid #cfd6de;padding:3px 8px;text-align:left;vertical-align:top}\
 th{background:#eef2f6}td.num{text-align:right}.mono{font-family:ui-monospace,Consolas,monospace;font-size:.9em;white-space:pre-wrap}\
-td{overflow-wrap:anywhere}table{max-width:100%}\
+td{overflow-wrap:break-word}table{max-width:100%}\
 figure{margin:10px 0 16px}figcaption{color:#4a5663;font-size:.9em;margin-top:2px}\
 figure svg{max-width:100%;height:auto;border:1px solid #e1e6eb}\
 .gallery{display:flex;flex-wrap:wrap;gap:12px}.gallery figure{flex:0 1 auto;margin:4px 0}\
