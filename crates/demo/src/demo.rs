@@ -10,18 +10,23 @@
 //!    with the same seed, version and options;
 //! 2. trains the paper's three classifiers and ours and quantizes ours to int8
 //!    ([`pbm_ml::train::train_all`]); at the same time (the trainer of `ours` keeps one core
-//!    busy, the audit uses the other) it draws a hidden plant effect from the seed
+//!    busy, the rest uses the other) it draws a hidden plant effect from the seed
 //!    ([`pbm_lab::audit_sweep::draw_case`]), synthesises noisy releases with it and runs the
-//!    discrepancy audit on them;
+//!    discrepancy audit on them, runs the same audit on the real MetroPT-3 record
+//!    ([`pbm_lab::metro::audit_metro_file`]), and builds the fleet history: a generated fleet
+//!    (the slow-degradation scenario, [`DemoOptions::fleet_options`]: two healthy locomotives, a
+//!    growing leak, a clogging orifice, a failing transducer) ingested into a fresh SQLite
+//!    history, with its fleet table and a page per locomotive ([`pbm_fleet::report`]);
 //! 3. evaluates every classifier on the test split: accuracy, confusion matrices, accuracy
 //!    against time since the release command ([`pbm_ml::evaluate`]);
 //! 4. replays a sample of test traces (two per class by default) through the core pipeline
-//!    with CAN logging ([`pbm_lab::replay::write_replay_can_log`], the firmware's per-sample
+//!    with CAN logging ([`pbm_lab::replay::replay_to_can_log`], the firmware's per-sample
 //!    path), decodes the candump log with the core's decoder and tabulates the fault reports
 //!    as the cab display shows them; the same traces give the release curves measured vs twin;
 //! 5. scores the online estimator against the generator's truth on the test split (scatter
 //!    plots, error table);
 //! 6. writes `report/index.html` (self-contained: inline CSS and SVG, no script, no network),
+//!    leading with the fleet table, and each locomotive's page next to it (`loco-….html`),
 //!    with the firmware cost figures read from `bench/firmware.md` when that file exists
 //!    (labelled as read from it — everything else in the page is computed in the run), checks
 //!    the page's structure, and prints a summary table.

@@ -6,7 +6,9 @@
 //! times. A *healthy* locomotive stays at its own parameters; a *leaking* one grows a leak to
 //! atmosphere linearly from 0 at release `onset` to `leak_end_mm` at the last release; a
 //! *clogging* one has its release orifice shrink linearly from 1.25 mm at `onset` to
-//! `orifice_end_mm`. The plant is the f64 reference twin and the sensor is SPEC §5's (σ =
+//! `orifice_end_mm`; a *failing-transducer* one keeps a healthy brake and its pressure
+//! transducer shows the generator's sensor fault ([`DEFAULT_SENSOR_FAULT`]) from `onset` on. The
+//! plant is the f64 reference twin and the sensor is SPEC §5's (σ =
 //! 0.01 bar noise, 12-bit ADC), through the generator's own functions, so a degraded release is
 //! drawn like any generated release.
 //!
