@@ -669,6 +669,9 @@ pub struct DemoArgs {
     /// Worker threads (0 = all cores).
     #[arg(long, default_value_t = 0)]
     threads: usize,
+    /// The MetroPT-3 record of the real-data audit.
+    #[arg(long, default_value_os_t = DemoOptions::default().metro)]
+    metro: PathBuf,
 }
 
 impl From<DemoArgs> for DemoOptions {
@@ -681,6 +684,7 @@ impl From<DemoArgs> for DemoOptions {
             firmware_report: a.firmware_report,
             can_per_class: a.can_per_class,
             threads: a.threads,
+            metro: a.metro,
         }
     }
 }
@@ -828,6 +832,14 @@ pub struct FleetDegradeArgs {
     /// Release orifice diameter at the last release, mm.
     #[arg(long, default_value_t = DegradationOptions::new(0, Vec::new()).orifice_end_mm)]
     orifice_end_mm: f64,
+    /// Locomotives with a healthy brake whose pressure transducer fails from --onset on.
+    #[arg(long, default_value_t = 0)]
+    sensor: usize,
+    /// The transducer fault of the --sensor locomotives, as the generator's --sensor-fault
+    /// (KIND[=VALUE][@ONSET_S|@random]).
+    #[arg(long, value_parser = pbm_lab::sensor_faults::parse_spec,
+          default_value = "spikes=0.01@random")]
+    sensor_fault: pbm_lab::sensor_faults::FaultSpec,
     /// Random seed (fleet spread and sensor noise).
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -840,6 +852,7 @@ impl From<FleetDegradeArgs> for pbm_fleet::commands::DegradeRun {
             healthy: a.healthy,
             leak: a.leak,
             clog: a.clog,
+            sensor: a.sensor,
             options: DegradationOptions {
                 seed: a.seed,
                 wear: Vec::new(),
@@ -847,6 +860,7 @@ impl From<FleetDegradeArgs> for pbm_fleet::commands::DegradeRun {
                 onset: a.onset,
                 leak_end_mm: a.leak_end_mm,
                 orifice_end_mm: a.orifice_end_mm,
+                sensor_fault: a.sensor_fault,
             },
         }
     }

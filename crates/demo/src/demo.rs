@@ -10,18 +10,23 @@
 //!    with the same seed, version and options;
 //! 2. trains the paper's three classifiers and ours and quantizes ours to int8
 //!    ([`pbm_ml::train::train_all`]); at the same time (the trainer of `ours` keeps one core
-//!    busy, the audit uses the other) it draws a hidden plant effect from the seed
+//!    busy, the rest uses the other) it draws a hidden plant effect from the seed
 //!    ([`pbm_lab::audit_sweep::draw_case`]), synthesises noisy releases with it and runs the
-//!    discrepancy audit on them;
+//!    discrepancy audit on them, runs the same audit on the real MetroPT-3 record
+//!    ([`pbm_lab::metro::audit_metro_file`]), and builds the fleet history: a generated fleet
+//!    (the slow-degradation scenario, [`DemoOptions::fleet_options`]: two healthy locomotives, a
+//!    growing leak, a clogging orifice, a failing transducer) ingested into a fresh SQLite
+//!    history, with its fleet table and a page per locomotive ([`pbm_fleet::report`]);
 //! 3. evaluates every classifier on the test split: accuracy, confusion matrices, accuracy
 //!    against time since the release command ([`pbm_ml::evaluate`]);
 //! 4. replays a sample of test traces (two per class by default) through the core pipeline
-//!    with CAN logging ([`pbm_lab::replay::write_replay_can_log`], the firmware's per-sample
+//!    with CAN logging ([`pbm_lab::replay::replay_to_can_log`], the firmware's per-sample
 //!    path), decodes the candump log with the core's decoder and tabulates the fault reports
 //!    as the cab display shows them; the same traces give the release curves measured vs twin;
 //! 5. scores the online estimator against the generator's truth on the test split (scatter
 //!    plots, error table);
 //! 6. writes `report/index.html` (self-contained: inline CSS and SVG, no script, no network),
+//!    leading with the fleet table, and each locomotive's page next to it (`loco-….html`),
 //!    with the firmware cost figures read from `bench/firmware.md` when that file exists
 //!    (labelled as read from it — everything else in the page is computed in the run), checks
 //!    the page's structure, and prints a summary table.
@@ -33,10 +38,12 @@ use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use pbm::can::{Decoder, Report};
 use pbm::mechanism::Mechanism;
 use pbm::{AdcCounts, FaultClass};
+use pbm_fleet::scenario::{DegradationOptions, Wear};
 use pbm_io::dataset::{Dataset, TraceItem, MANIFEST, TRUTH};
 use pbm_lab::audit_sweep::{check_case, draw_case, CaseResult as AuditCase};
 use pbm_lab::estimate::{self, CaseResult as EstimateCase, Param};
 use pbm_lab::generate::{generate_with, GenerateOptions};
+use pbm_lab::metro::{MetroOutcome, MetroRow};
 use pbm_lab::replay::{replay_trace, summarise};
 use pbm_ml::evaluate::{accuracy_vs_time, score_all, stable_by, Score};
 use pbm_ml::nn::Mlp;
@@ -57,9 +64,27 @@ pub const QUICK_PER_CLASS: usize = 40;
 pub const QUICK_TEST_PER_CLASS: usize = 10;
 /// Stamp file in the data directory: what wrote it, with which seed, version and options.
 pub const STAMP: &str = "demo-stamp.txt";
-/// Section ids every report has (the tests look for them).
-pub const REQUIRED_SECTIONS: [&str; 11] =
-    ["run", "summary", "data", "classifiers", "confusion", "early", "release", "can", "estimator", "audit", "firmware"];
+/// Section ids every report has (the tests look for them), in page order: the fleet first.
+pub const REQUIRED_SECTIONS: [&str; 12] = [
+    "fleet",
+    "run",
+    "summary",
+    "data",
+    "classifiers",
+    "confusion",
+    "early",
+    "release",
+    "can",
+    "estimator",
+    "audit",
+    "firmware",
+];
+/// Releases per locomotive of the demo's fleet history (`--quick`: [`QUICK_FLEET_RELEASES`]).
+pub const FLEET_RELEASES: usize = 150;
+/// Releases per locomotive of the quick demo's fleet history.
+pub const QUICK_FLEET_RELEASES: usize = 70;
+/// Stamp file of the demo's fleet history directory (it is regenerated on every run).
+pub const FLEET_STAMP: &str = "demo-fleet-history.txt";
 /// Test accuracies the paper reports for its three classifiers on its real data (SPEC §6), %.
 /// These are the paper's published figures, shown beside this run's for comparison.
 pub const PAPER_REPORTED_PCT: [(&str, f64); 3] = [("paper_raw", 72.0), ("paper_residual", 81.2), ("paper_theta", 96.0)];
@@ -82,6 +107,8 @@ pub struct DemoOptions {
     pub can_per_class: usize,
     /// Worker threads (0 = all cores).
     pub threads: usize,
+    /// The MetroPT-3 record for the real-data audit.
+    pub metro: PathBuf,
 }
 
 impl Default for DemoOptions {
@@ -95,6 +122,7 @@ impl Default for DemoOptions {
             firmware_report: PathBuf::from("bench/firmware-figures.env"),
             can_per_class: 2,
             threads: 0,
+            metro: PathBuf::from(pbm_lab::metro::DEFAULT_PATH),
         }
     }
 }
@@ -119,6 +147,18 @@ impl DemoOptions {
             g.test_per_class = QUICK_TEST_PER_CLASS;
         }
         g
+    }
+
+    /// The fleet history's scenario: two healthy locomotives, one whose leak grows, one whose
+    /// release orifice clogs, and one whose pressure transducer fails (its brake is healthy).
+    pub fn fleet_options(&self) -> DegradationOptions {
+        let wear = vec![Wear::Healthy, Wear::Healthy, Wear::Leak, Wear::Clog, Wear::Sensor];
+        let mut o = DegradationOptions::new(self.seed, wear);
+        if self.quick {
+            o.releases = QUICK_FLEET_RELEASES;
+            o.onset = 25;
+        }
+        o
     }
 }
 
@@ -485,6 +525,65 @@ fn audit_stage(seed: u64) -> Result<AuditCase> {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Stage 0: the fleet history
+
+/// The fleet history of a run: the fleet table and every locomotive's page.
+#[derive(Debug, Clone)]
+pub struct FleetStage {
+    /// The scenario the releases were drawn from.
+    pub options: DegradationOptions,
+    /// The history's directory (data set and database).
+    pub dir: PathBuf,
+    /// Releases stored.
+    pub releases: usize,
+    /// Ingest rate, releases per second (replay through the monitor included).
+    pub per_second: f64,
+    /// The fleet table (section `fleet`) with links to the pages.
+    pub section: Section,
+    /// Each locomotive's page: file name next to `index.html`, HTML.
+    pub pages: Vec<(String, String)>,
+}
+
+/// Generates the fleet's releases (the slow-degradation scenario with a failing transducer),
+/// ingests them into a fresh history and builds its pages. The directory is the demo's own: it
+/// is replaced on every run, and refused when something else is there.
+fn fleet_stage(a: &DemoOptions) -> Result<FleetStage> {
+    let dir = a.out.join("fleet-history");
+    let stamp = dir.join(FLEET_STAMP);
+    if dir.exists() {
+        if !stamp.is_file() {
+            bail!("{} exists and was not written by `host-sim demo` (no {FLEET_STAMP}); remove it", dir.display());
+        }
+        std::fs::remove_dir_all(&dir).with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    let options = a.fleet_options();
+    let data = dir.join("releases");
+    pbm_fleet::scenario::write(&options, &data)?;
+    std::fs::write(&stamp, format!("host-sim demo fleet history, seed {}\n", options.seed))
+        .with_context(|| format!("cannot write {}", stamp.display()))?;
+    let mut db = pbm_fleet::db::FleetDb::open(&dir.join("fleet.sqlite"))?;
+    let ingested =
+        pbm_fleet::ingest::ingest(&mut db, &[&data], &pbm_fleet::ingest::IngestOptions { threads: a.threads })?;
+    if !ingested.skipped.is_empty() {
+        bail!("the demo's own fleet releases could not all be stored\n{}", ingested.skipped);
+    }
+    let rule = pbm_fleet::trend::WarningRule::default();
+    let (section, pages) = pbm_fleet::report::fleet_pages(&db, &rule, "index.html")?;
+    let secs = ingested.elapsed.as_secs_f64();
+    Ok(FleetStage {
+        options,
+        dir,
+        releases: ingested.releases,
+        per_second: if secs > 0.0 { ingested.releases as f64 / secs } else { 0.0 },
+        section,
+        pages,
+    })
+}
+
+/// The real-data audit: the MetroPT-3 record's rows and the audit's outcome.
+pub type MetroAudit = (Vec<MetroRow>, MetroOutcome);
+
+// ---------------------------------------------------------------------------------------------
 // Provenance
 
 /// Facts that make the run reproducible.
@@ -558,6 +657,10 @@ pub struct DemoResults {
     pub estimates: Vec<EstimateCase>,
     /// The audit case (or why it failed).
     pub audit: Result<AuditCase, String>,
+    /// The real-data audit (or why it could not run).
+    pub metro: Result<MetroAudit, String>,
+    /// The fleet history.
+    pub fleet: FleetStage,
     /// Firmware report: (path, modified time, text), if present.
     pub firmware: Option<(PathBuf, String, String)>,
     /// Stage wall times.
@@ -1049,8 +1152,165 @@ fn section_estimator(r: &DemoResults, svg_dir: &Path) -> Result<Section> {
     Ok(s)
 }
 
+/// A metro mechanism and its magnitude in words, with its unit.
+fn metro_effect_words(m: Mechanism, v: f64, u: f64) -> String {
+    let what = match m {
+        Mechanism::HeatTransfer => "heat exchange between the compressed air and the reservoir wall, time constant",
+        Mechanism::TransportDelay => "a delay before the compressor's air reaches the reservoir of",
+        Mechanism::ValveLag => "the compressor's delivery building up after it loads, time constant",
+        Mechanism::SensorLag => "a lag of the pressure transducer of",
+        Mechanism::SensorOffset => "a zero offset of the pressure transducer of",
+        Mechanism::SensorGain => "a gain error of the pressure transducer, factor",
+        Mechanism::LaminarLeak => "an extra leak growing with the pressure, at 7 bar g",
+        _ => "an effect of magnitude",
+    };
+    let unit = if m.unit() == "1" { String::new() } else { format!(" {}", m.unit()) };
+    format!("{what} {v:.2} ± {u:.2}{unit}")
+}
+
+/// A brake mechanism and its magnitude in words, with its unit (the library's own name with
+/// spaces; a ratio has no unit).
+fn effect_words(m: Mechanism, v: f64) -> String {
+    let unit = if m.unit() == "1" { " (ratio)".to_owned() } else { format!(" {}", m.unit()) };
+    format!("{} {v:.4}{unit}", m.name().replace('_', " "))
+}
+
+/// The synthetic and the real-data audit side by side, in words and physical units.
+fn audits_side_by_side(r: &DemoResults) -> Table {
+    let mut t = Table::new(
+        "The two audits side by side",
+        &["", "Synthetic brake releases with a hidden effect", "Real record: MetroPT-3 air production unit"],
+    );
+    let (mut syn, mut real): (Vec<String>, Vec<String>) = (Vec::new(), Vec::new());
+    let rows = [
+        "data",
+        "model audited",
+        "verdict",
+        "residual of the base → the chosen model, in transducer noise",
+        "noise of the measurement",
+        "error common to every cycle vs the variation between cycles",
+        "what is still missing",
+    ];
+    match &r.audit {
+        Ok(a) => {
+            let o = &a.outcome;
+            let truth = a.truth.iter().map(|(m, v)| effect_words(*m, *v)).collect::<Vec<_>>().join(" and ");
+            let named = if o.cause_effects.is_empty() {
+                o.cause.replace('_', " ")
+            } else {
+                o.cause_effects.iter().map(|(m, v, _)| effect_words(*m, *v)).collect::<Vec<_>>().join(" and ")
+            };
+            syn.push(format!(
+                "{} noisy releases of one brake, generated with a hidden {truth}",
+                pbm_lab::audit_sweep::RELEASES_PER_CASE
+            ));
+            syn.push("the brake twin: spring chamber, piston and valve, adiabatic air".to_owned());
+            syn.push(format!(
+                "names {named}{}",
+                if a.hit() { " — the hidden effect, right size" } else { " — a miss" }
+            ));
+            syn.push(format!(
+                "{:.1}× → {:.1}× (at the noise floor up to {})",
+                o.residual_to_noise.0,
+                o.residual_to_noise.1,
+                pbm_lab::audit::NOISE_FLOOR_RATIO
+            ));
+            syn.push(format!("{:.4} bar per sample (estimated)", o.diagnostics.sigma_trace_bar));
+            syn.push("not applicable: the releases are repeats of one brake".to_owned());
+            syn.push(if o.residual_to_noise.1 <= pbm_lab::audit::NOISE_FLOOR_RATIO {
+                "nothing beyond the noise".to_owned()
+            } else {
+                "part of the discrepancy stays unexplained".to_owned()
+            });
+        }
+        Err(e) => syn.extend(rows.iter().map(|_| format!("failed: {e}"))),
+    }
+    match &r.metro {
+        Ok((data, m)) => {
+            let hours = data.last().map_or(0.0, |x| x.t_s / 3600.0);
+            real.push(format!(
+                "{:.1} h of the reservoir pressure of a Porto metro train's air production unit, one sample about every 10 s ({} samples), with the compressor's load signal",
+                hours,
+                data.len()
+            ));
+            real.push(
+                "the reservoir model built from the twin's parts: the compressor as an air source while it is loaded, consumption and leakage as an orifice to atmosphere, adiabatic air"
+                    .to_owned(),
+            );
+            let named = if m.chosen.effects.is_empty() {
+                match m.cause.as_str() {
+                    "none" => "no missing effect".to_owned(),
+                    _ => "a discrepancy no effect of the library explains".to_owned(),
+                }
+            } else {
+                m.chosen
+                    .effects
+                    .iter()
+                    .map(|(e, v, u)| metro_effect_words(*e, *v, *u))
+                    .collect::<Vec<_>>()
+                    .join("; and ")
+            };
+            let part = if m.residual_to_noise.1 <= pbm_lab::audit::NOISE_FLOOR_RATIO {
+                "explains the discrepancy"
+            } else {
+                "explains part of the discrepancy"
+            };
+            real.push(format!("names {named}: {part}"));
+            real.push(format!(
+                "{:.1}× → {:.1}× (at the noise floor up to {})",
+                m.residual_to_noise.0,
+                m.residual_to_noise.1,
+                pbm_lab::audit::NOISE_FLOOR_RATIO
+            ));
+            real.push(format!("{:.4} bar per sample (estimated)", m.sigma));
+            real.push(match &m.cycle_floor {
+                Some(f) => format!(
+                    "the {} compressor cycles differ from each other by {:.3} bar RMS ({:.0}× the noise: air consumption the record does not hold, which no model driven by the load signal alone can follow); the error common to all cycles is {:.3} bar RMS, {}",
+                    f.cycles,
+                    f.spread_bar,
+                    f.spread_bar / m.sigma,
+                    f.systematic_bar,
+                    if f.systematic() {
+                        format!(
+                            "beyond that variation at {:.0} % of the times (chance at most {:.1} %): the model still errs the same way in every cycle",
+                            100.0 * f.share_beyond,
+                            100.0 * f.p_at_most()
+                        )
+                    } else {
+                        "within that variation: the rest changes from cycle to cycle".to_owned()
+                    }
+                ),
+                None => "fewer than three complete compressor cycles: not measured".to_owned(),
+            });
+            real.push(pbm_lab::metro::describe_aligned(&m.missing));
+        }
+        Err(e) => real.extend(rows.iter().map(|_| format!("not run: {e}"))),
+    }
+    for ((what, a), b) in rows.iter().zip(syn).zip(real) {
+        t.row(vec![Cell::strong(*what), Cell::text(a), Cell::text(b)]);
+    }
+    t
+}
+
 fn section_audit(r: &DemoResults) -> Result<Section> {
-    let mut s = Section::new("audit", "Model-discrepancy audit on data with a hidden effect");
+    let mut s = Section::new("audit", "Model-discrepancy audits: synthetic releases and a real record");
+    s.push(Block::Para(
+        "The audit asks whether the model misses a physical effect, and which: it fits the model with each candidate effect of its library added, keeps an effect only when the data need it, and compares what is left with the measurement noise. It ran twice: on generated brake releases with an effect hidden in them (the answer is known), and on a real compressed-air record, where it is not."
+            .into(),
+    ));
+    s.push(Block::Table(audits_side_by_side(r)));
+    if let Ok((rows, m)) = &r.metro {
+        s.push(Block::Figure {
+            svg: pbm_lab::metro::curves_svg(rows, m)?,
+            caption: "Real record: the measured reservoir pressure, the adiabatic base model and the model with the effects the audit named, over the whole record."
+                .into(),
+        });
+        s.push(Block::Figure {
+            svg: pbm_lab::metro::residual_svg(rows, m)?,
+            caption: "Real record: what each model leaves (measured − model), bar.".into(),
+        });
+    }
+    s.push(Block::Heading("The synthetic audit in detail".into()));
     let a = match &r.audit {
         Ok(a) => a,
         Err(e) => {
@@ -1210,6 +1470,7 @@ fn section_firmware(r: &DemoResults) -> Section {
 pub fn build_page(r: &DemoResults, svg_dir: &Path) -> Result<Page> {
     std::fs::create_dir_all(svg_dir).with_context(|| format!("cannot create {}", svg_dir.display()))?;
     let sections = vec![
+        r.fleet.section.clone(),
         section_run(r),
         section_summary(r),
         section_data(r),
@@ -1336,8 +1597,9 @@ fn run_in_pool(a: &DemoOptions) -> Result<()> {
     // 2. training ‖ audit
     let t = Instant::now();
     let bar_t = p.spinner(2, "training 4 classifiers + int8 quantization");
-    let bar_a = p.spinner(2, "audit of a hidden effect");
-    let ((trained, t_train), (audit, t_audit)) = rayon::join(
+    let bar_a = p.spinner(2, "audits (hidden effect, real record) and the fleet history");
+    // Training `ours` keeps one core busy; the audits and the fleet history share the other.
+    let ((trained, t_train), ((audit, t_audit), (metro, t_metro), (fleet, t_fleet))) = rayon::join(
         || {
             let t0 = Instant::now();
             let r = train_all(&data.train, a.seed);
@@ -1347,23 +1609,42 @@ fn run_in_pool(a: &DemoOptions) -> Result<()> {
         || {
             let t0 = Instant::now();
             let r = audit_stage(a.seed).map_err(|e| format!("{e:#}"));
+            let audit = (r, t0.elapsed());
+            let t0 = Instant::now();
+            let m = pbm_lab::metro::audit_metro_file(&a.metro).map_err(|e| format!("{e:#}"));
+            let metro = (m, t0.elapsed());
+            let t0 = Instant::now();
+            let f = fleet_stage(a);
+            let fleet = (f, t0.elapsed());
             bar_a.finish_and_clear();
-            (r, t0.elapsed())
+            (audit, metro, fleet)
         },
     );
     let trained = trained?;
+    let fleet = fleet.context("the fleet history")?;
     let epochs =
         trained.models.iter().map(|(k, _, l)| format!("{} {}", k.name(), l.epochs)).collect::<Vec<_>>().join(", ");
     let cause = match &audit {
         Ok(c) => format!("cause {}", c.outcome.cause),
         Err(e) => format!("FAILED: {e}"),
     };
+    let metro_cause = match &metro {
+        Ok((_, m)) => format!("cause {}", m.cause),
+        Err(e) => format!("FAILED: {e}"),
+    };
     let detail = format!(
-        "training {:.1} s (epochs: {epochs}) concurrently with the audit {:.1} s ({cause})",
+        "training {:.1} s (epochs: {epochs}) concurrently with the audit {:.1} s ({cause}), the real-data audit \
+         {:.1} s ({metro_cause}) and the fleet history {:.1} s ({} releases of {} locomotives, ingested at {:.0} \
+         releases/s)",
         t_train.as_secs_f64(),
-        t_audit.as_secs_f64()
+        t_audit.as_secs_f64(),
+        t_metro.as_secs_f64(),
+        t_fleet.as_secs_f64(),
+        fleet.releases,
+        fleet.options.wear.len(),
+        fleet.per_second
     );
-    p.done(&bar_t, 2, "training ‖ audit", t.elapsed(), detail);
+    p.done(&bar_t, 2, "training ‖ audits + fleet history", t.elapsed(), detail);
 
     // 3. evaluation
     let t = Instant::now();
@@ -1398,6 +1679,8 @@ fn run_in_pool(a: &DemoOptions) -> Result<()> {
         can,
         estimates,
         audit,
+        metro,
+        fleet,
         firmware: firmware_report(&a.firmware_report),
         stages: p.times.clone(),
         total: start.elapsed(),
@@ -1414,17 +1697,23 @@ fn run_in_pool(a: &DemoOptions) -> Result<()> {
         detail: "page built".into(),
     });
     // The run section states the final figures (built last, everything else is unchanged).
-    page.sections[0] = section_run(&results);
+    page.sections[1] = section_run(&results);
     let html = render(&page);
     let found = check(&html, &REQUIRED_SECTIONS).map_err(|e| anyhow::anyhow!("the report fails its own check: {e}"))?;
     let index = a.out.join("index.html");
+    // The locomotive pages first: the index links to them.
+    for (name, page) in &results.fleet.pages {
+        let path = a.out.join(name);
+        std::fs::write(&path, page).with_context(|| format!("cannot write {}", path.display()))?;
+    }
     std::fs::write(&index, &html).with_context(|| format!("cannot write {}", index.display()))?;
     let detail = format!(
-        "{} sections, {} plots, {} tables, {:.1} MB",
+        "{} sections, {} plots, {} tables, {:.1} MB; {} locomotive pages",
         found.sections.len(),
         found.svgs,
         found.tables,
-        html.len() as f64 / 1e6
+        html.len() as f64 / 1e6,
+        results.fleet.pages.len()
     );
     p.done(&bar, 6, "report", t.elapsed(), detail);
     results.total = start.elapsed();
@@ -1433,6 +1722,9 @@ fn run_in_pool(a: &DemoOptions) -> Result<()> {
     print!("{}", summary_text(&results, &index));
     if let Err(e) = &results.audit {
         bail!("the audit stage failed ({e}); the rest of the report was written to {}", index.display());
+    }
+    if let Err(e) = &results.metro {
+        bail!("the real-data audit failed ({e}); the rest of the report was written to {}", index.display());
     }
     Ok(())
 }

@@ -88,7 +88,7 @@ fn the_check_finds_what_a_reader_would_miss() {
 
     // An empty section.
     let mut page = full_page();
-    page.sections[3].blocks.clear();
+    page.sections.iter_mut().find(|s| s.id == "classifiers").unwrap().blocks.clear();
     let e = check(&render(&page), &REQUIRED_SECTIONS).unwrap_err();
     assert!(e.contains("classifiers") && e.contains("empty"), "{e}");
 
@@ -176,11 +176,31 @@ fn demo_defaults_and_the_data_stamp() {
 #[ignore = "runs the quick demo (≈ 15–35 s); cargo test -p pbm-demo --test demo_report -- --ignored"]
 fn quick_demo_end_to_end() {
     let dir = tempfile::tempdir().unwrap();
-    let a = DemoOptions { quick: true, out: dir.path().join("report"), ..DemoOptions::default() };
+    // The record of the real-data audit, from the repository root (tests run in the crate).
+    let metro = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..").join(pbm_lab::metro::DEFAULT_PATH);
+    let a = DemoOptions { quick: true, out: dir.path().join("report"), metro, ..DemoOptions::default() };
     pbm_demo::demo::run(&a).unwrap();
     let html = std::fs::read_to_string(a.out.join("index.html")).unwrap();
     let found = check(&html, &REQUIRED_SECTIONS).unwrap();
-    assert!(found.svgs >= 12 && found.tables >= 14, "{found:?}");
+    assert!(found.svgs >= 20 && found.tables >= 15, "{found:?}");
+    assert_eq!(found.sections[0], "fleet", "the report leads with the fleet");
+    // The fleet table links a page per locomotive, written next to the index and checked.
+    let pages: Vec<String> = std::fs::read_dir(&a.out)
+        .unwrap()
+        .filter_map(|e| e.ok()?.file_name().into_string().ok())
+        .filter(|n| n.starts_with("loco-") && n.ends_with(".html"))
+        .collect();
+    assert_eq!(pages.len(), a.fleet_options().wear.len(), "{pages:?}");
+    for p in &pages {
+        assert!(html.contains(&format!("<a href=\"{p}\">")), "{p} linked");
+        let page = std::fs::read_to_string(a.out.join(p)).unwrap();
+        check(&page, &pbm_fleet::report::LOCOMOTIVE_SECTIONS).unwrap();
+    }
+    // The failing transducer is a sensor warning, the worn brakes early warnings.
+    assert!(html.contains("the transducer, not the brake"));
+    assert!(html.contains("leak drifting toward") && html.contains("orifice drifting toward"));
+    // The real-data audit beside the synthetic one.
+    assert!(html.contains("Real record: MetroPT-3 air production unit"));
     assert!(html.contains(&format!("seed {}", a.seed)));
     let stamp = std::fs::read_to_string(a.data_dir().join(pbm_demo::demo::STAMP)).unwrap();
     assert_eq!(stamp, stamp_text(&a.generate_options()));

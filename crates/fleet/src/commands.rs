@@ -72,6 +72,8 @@ pub struct DegradeRun {
     pub leak: usize,
     /// Locomotives with a clogging release orifice.
     pub clog: usize,
+    /// Locomotives with a healthy brake whose transducer fails from the onset on.
+    pub sensor: usize,
     /// Seed, releases, onset and end points.
     pub options: DegradationOptions,
 }
@@ -81,6 +83,7 @@ pub fn run_degrade(a: &DegradeRun) -> Result<()> {
     let mut wear = vec![Wear::Healthy; a.healthy];
     wear.extend(std::iter::repeat_n(Wear::Leak, a.leak));
     wear.extend(std::iter::repeat_n(Wear::Clog, a.clog));
+    wear.extend(std::iter::repeat_n(Wear::Sensor, a.sensor));
     let o = DegradationOptions { wear, ..a.options.clone() };
     let written = write(&o, &a.out)?;
     eprintln!("wrote {} releases of {} locomotives to {}", written.len(), o.wear.len(), a.out.display());

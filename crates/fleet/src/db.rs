@@ -2,7 +2,11 @@
 //!
 //! # Schema
 //!
-//! One table, `releases`, one row per release of a locomotive (columns in [`SCHEMA`]). Its
+//! `releases` holds one row per release of a locomotive (columns in [`SCHEMA`]); since schema 3
+//! `release_curves` (its measured and twin pressure, [`ReleaseCurve::to_blob`]) and
+//! `can_reports` (the fault reports the cab decoded) hang off a release's row and are replaced
+//! with it. A database of an older schema is migrated when opened (schema 2 → 3 only adds the
+//! two tables: its releases have no curve and no reports until ingested again). A release's
 //! natural key is (`locomotive`, `source`, `origin`, `release_key`) under a UNIQUE constraint:
 //! the same release ingested again (same file, same release in it) updates its row in place
 //! (`INSERT … ON CONFLICT … DO UPDATE`) instead of adding one, so re-ingesting is idempotent,
@@ -18,7 +22,7 @@
 //!   (`BEGIN IMMEDIATE`), so two ingests at once queue for it instead of failing with a
 //!   deadlock on lock upgrade.
 
-use crate::record::{ReleaseRecord, Source};
+use crate::record::{verdict_label, ReleaseCurve, ReleaseRecord, Source};
 use anyhow::{Context, Result};
 use pbm_io::error::FileError;
 use rusqlite::{params, Connection, OpenFlags, OptionalExtension, TransactionBehavior};
@@ -29,7 +33,7 @@ use std::time::Duration;
 pub const BUSY_TIMEOUT: Duration = Duration::from_secs(60);
 
 /// Version of the schema, kept in `PRAGMA user_version`.
-pub const SCHEMA_VERSION: i64 = 2;
+pub const SCHEMA_VERSION: i64 = 3;
 
 /// The tables (idempotent: run on every open).
 pub const SCHEMA: &str = "
@@ -54,6 +58,27 @@ CREATE TABLE IF NOT EXISTS releases (
     UNIQUE (locomotive, source, origin, release_key)
 );
 CREATE INDEX IF NOT EXISTS releases_by_loco ON releases (locomotive, release_no, time_s);
+CREATE TABLE IF NOT EXISTS release_curves (
+    release_id     INTEGER PRIMARY KEY REFERENCES releases (id),
+    step_s         REAL    NOT NULL,
+    points         BLOB    NOT NULL
+);
+CREATE TABLE IF NOT EXISTS can_reports (
+    release_id     INTEGER NOT NULL REFERENCES releases (id),
+    seq            INTEGER NOT NULL,
+    time_s         REAL    NOT NULL,
+    can_release    INTEGER NOT NULL,
+    verdict        TEXT    NOT NULL,
+    confidence_pct INTEGER,
+    no_diagnosis   TEXT,
+    since_command_s REAL   NOT NULL,
+    supply_bar_g   REAL,
+    leak_mm        REAL,
+    completed      INTEGER NOT NULL,
+    current        INTEGER NOT NULL,
+    lost_before    INTEGER NOT NULL,
+    PRIMARY KEY (release_id, seq)
+);
 ";
 
 /// Schema 1 → 2: the samples' fingerprint and whether the release number is the trace's own.
@@ -99,6 +124,8 @@ pub struct Stored {
 /// A stored release (a row of `releases`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct StoredRelease {
+    /// Row id (the key of its curve and CAN reports in this database).
+    pub id: i64,
     /// Locomotive name.
     pub locomotive: String,
     /// `trace` or `can`.
@@ -210,6 +237,18 @@ impl FleetDb {
                 "SELECT 1 FROM releases WHERE locomotive = ?1 AND source = ?2 AND origin = ?3 AND release_key = ?4",
             )?;
             let mut upsert = tx.prepare_cached(UPSERT)?;
+            let mut id_of = tx.prepare_cached(
+                "SELECT id FROM releases WHERE locomotive = ?1 AND source = ?2 AND origin = ?3 AND release_key = ?4",
+            )?;
+            let mut drop_curve = tx.prepare_cached("DELETE FROM release_curves WHERE release_id = ?1")?;
+            let mut drop_reports = tx.prepare_cached("DELETE FROM can_reports WHERE release_id = ?1")?;
+            let mut put_curve =
+                tx.prepare_cached("INSERT INTO release_curves (release_id, step_s, points) VALUES (?1, ?2, ?3)")?;
+            let mut put_report = tx.prepare_cached(
+                "INSERT INTO can_reports (release_id, seq, time_s, can_release, verdict, confidence_pct, no_diagnosis,
+                                          since_command_s, supply_bar_g, leak_mm, completed, current, lost_before)
+                 VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)",
+            )?;
             let mut same_samples =
                 tx.prepare_cached("SELECT origin FROM releases WHERE locomotive = ?1 AND content_hash = ?2 LIMIT 1")?;
             let mut same_number = tx.prepare_cached(
@@ -262,6 +301,29 @@ impl FleetDb {
                     r.content_hash,
                     r.numbered,
                 ])?;
+                let id: i64 = id_of.query_row(key, |row| row.get(0))?;
+                drop_curve.execute([id])?;
+                drop_reports.execute([id])?;
+                if let Some(c) = &r.detail.curve {
+                    put_curve.execute(params![id, c.step_s, c.to_blob()])?;
+                }
+                for (seq, c) in r.detail.can_reports.iter().enumerate() {
+                    put_report.execute(params![
+                        id,
+                        seq as i64,
+                        c.time_s,
+                        c.can_release,
+                        verdict_label(Some(&c.report.verdict)),
+                        crate::record::confidence_of(&c.report.verdict),
+                        crate::record::no_diagnosis_of(&c.report.verdict),
+                        f64::from(c.report.time_since_release_cs) / 100.0,
+                        crate::record::can_estimates(&c.report).0,
+                        crate::record::can_estimates(&c.report).1,
+                        c.report.release_completed,
+                        c.current,
+                        c.lost_before,
+                    ])?;
+                }
                 stored.releases += 1;
                 stored.new += usize::from(!known);
             }
@@ -287,7 +349,7 @@ impl FleetDb {
     pub fn releases(&self, locomotive: &str) -> Result<Vec<StoredRelease>> {
         let mut s = self.conn.prepare_cached(
             "SELECT locomotive, source, origin, release_key, release_no, time_s, verdict, confidence_pct,
-                    no_diagnosis, orifice_mm, leak_mm, supply_bar_g, label, content_hash, numbered
+                    no_diagnosis, orifice_mm, leak_mm, supply_bar_g, label, content_hash, numbered, id
              FROM releases WHERE locomotive = ?1
              ORDER BY release_no, time_s, source, origin, release_key",
         )?;
@@ -308,9 +370,47 @@ impl FleetDb {
                 label: r.get(12)?,
                 content_hash: r.get(13)?,
                 numbered: r.get(14)?,
+                id: r.get(15)?,
             })
         })?;
         Ok(rows.collect::<rusqlite::Result<_>>()?)
+    }
+
+    /// The stored release curve of a release ([`StoredRelease::id`]), if it has one.
+    pub fn curve(&self, release_id: i64) -> Result<Option<ReleaseCurve>> {
+        let mut s = self.conn.prepare_cached("SELECT step_s, points FROM release_curves WHERE release_id = ?1")?;
+        let row: Option<(f64, Vec<u8>)> = s.query_row([release_id], |r| Ok((r.get(0)?, r.get(1)?))).optional()?;
+        Ok(row.and_then(|(step, blob)| ReleaseCurve::from_blob(step, &blob)))
+    }
+
+    /// The decoded CAN fault reports of a release ([`StoredRelease::id`]), in order.
+    pub fn can_reports(&self, release_id: i64) -> Result<Vec<StoredCanReport>> {
+        let mut s = self.conn.prepare_cached(
+            "SELECT time_s, can_release, verdict, confidence_pct, no_diagnosis, since_command_s, supply_bar_g,
+                    leak_mm, completed, current, lost_before
+             FROM can_reports WHERE release_id = ?1 ORDER BY seq",
+        )?;
+        let rows = s.query_map([release_id], |r| {
+            Ok(StoredCanReport {
+                time_s: r.get(0)?,
+                can_release: r.get(1)?,
+                verdict: r.get(2)?,
+                confidence_pct: r.get(3)?,
+                no_diagnosis: r.get(4)?,
+                since_command_s: r.get(5)?,
+                supply_bar_g: r.get(6)?,
+                leak_mm: r.get(7)?,
+                completed: r.get(8)?,
+                current: r.get(9)?,
+                lost_before: r.get(10)?,
+            })
+        })?;
+        Ok(rows.collect::<rusqlite::Result<_>>()?)
+    }
+
+    /// The schema version of the open database (`PRAGMA user_version`).
+    pub fn schema_version(&self) -> Result<i64> {
+        Ok(self.conn.query_row("PRAGMA user_version", [], |r| r.get(0))?)
     }
 
     /// SQLite's own consistency check (`PRAGMA integrity_check`): `ok` or what is wrong.
@@ -333,6 +433,34 @@ impl FleetDb {
         self.conn.query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |_| Ok(()))?;
         Ok(())
     }
+}
+
+/// A decoded CAN fault report as stored (a row of `can_reports`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StoredCanReport {
+    /// Time of the frame, s (since the release's start for a replayed trace; the log's clock for
+    /// a CAN log).
+    pub time_s: f64,
+    /// The 6-bit release number the frame carries.
+    pub can_release: i64,
+    /// Verdict label (a class, `cannot_diagnose`).
+    pub verdict: String,
+    /// Calibrated confidence of a named class, per cent.
+    pub confidence_pct: Option<i64>,
+    /// Why no class was named.
+    pub no_diagnosis: Option<String>,
+    /// Time since the release command, s.
+    pub since_command_s: f64,
+    /// Supply estimate, bar g (none before it is estimated).
+    pub supply_bar_g: Option<f64>,
+    /// Leak estimate, mm.
+    pub leak_mm: Option<f64>,
+    /// The release had completed.
+    pub completed: bool,
+    /// A heartbeat vouched for the report (else the display shows it as stale).
+    pub current: bool,
+    /// Reports sent before it that the display never received.
+    pub lost_before: i64,
 }
 
 /// Whether `s` names a source the database stores.

@@ -15,13 +15,16 @@
 //! exit with status 3.
 
 use crate::db::{FleetDb, Stored};
-use crate::record::{can_estimates, can_locomotive_name, samples_hash, ReleaseRecord, Source};
+use crate::record::{
+    can_estimates, can_locomotive_name, samples_hash, CanReport, ReleaseCurve, ReleaseDetail, ReleaseRecord, Source,
+    CURVE_STEP_S,
+};
 use anyhow::{bail, Result};
 use pbm::can::{Decoder, Report};
 use pbm_io::dataset::TraceItem;
 use pbm_io::error::{FileError, Skipped};
 use pbm_io::trace::TraceReader;
-use pbm_lab::replay::{replay_item, ReplayError, ReplayOptions};
+use pbm_lab::replay::{replay_item_observing, ReplayError, ReplayOptions, ReplaySample, TimedFrame};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::io::BufRead;
@@ -137,11 +140,24 @@ pub fn trace_record(item: &TraceItem, rank: usize) -> Result<Result<ReleaseRecor
         Ok(bytes) => Some(samples_hash(&String::from_utf8_lossy(&bytes))),
         Err(e) => return Ok(Err(FileError::new(&name, 0, format!("cannot read: {e}")))),
     };
-    let replay = match replay_item(item, &ReplayOptions::default()) {
+    // The release curve, thinned to the stored step, is kept as the samples go by; the frames
+    // the controller sent are kept and decoded as the cab display would.
+    let stride = (CURVE_STEP_S / pbm::twin::SAMPLE_PERIOD_S).round().max(1.0) as usize;
+    let mut curve = ReleaseCurve { step_s: CURVE_STEP_S, ..ReleaseCurve::default() };
+    let mut index = 0usize;
+    let observe = |s: &ReplaySample| {
+        if index % stride == 0 {
+            curve.measured_bar.push(s.measured_bar() as f32);
+            curve.twin_bar.push(s.twin_bar() as f32);
+        }
+        index += 1;
+    };
+    let replay = match replay_item_observing(item, &ReplayOptions::default(), 0, true, observe) {
         Ok(r) => r,
         Err(ReplayError::Input(e)) => return Ok(Err(e)),
         Err(ReplayError::Output(e)) => return Err(e),
     };
+    let can_reports = decode_frames(&replay.replayed.frames);
     let s = &replay.summary;
     let est = s.last.map(|l| l.estimates);
     let f = |v: Option<f32>| v.map(f64::from).filter(|x| x.is_finite());
@@ -160,7 +176,28 @@ pub fn trace_record(item: &TraceItem, rank: usize) -> Result<Result<ReleaseRecor
         label,
         content_hash,
         numbered,
+        detail: ReleaseDetail { curve: (!curve.twin_bar.is_empty()).then_some(curve), can_reports },
     }))
+}
+
+/// The fault reports among a replayed release's frames, decoded by the core's decoder as the
+/// cab display decodes a log of them (times from the release's start).
+pub fn decode_frames(frames: &[TimedFrame]) -> Vec<CanReport> {
+    let mut decoder = Decoder::new();
+    let mut out = Vec::new();
+    for f in frames {
+        let reception = decoder.receive(pbm::can::candump::LOG_EPOCH_US + f.time_us, &f.frame);
+        if let (Ok(Report::Fault(report)), Some(id)) = (reception.result, reception.identity) {
+            out.push(CanReport {
+                time_s: f.time_us as f64 / 1e6,
+                can_release: id.release,
+                report,
+                current: !reception.stale,
+                lost_before: reception.lost_fault_reports,
+            });
+        }
+    }
+    out
 }
 
 /// The releases of a candump log: one per (locomotive, release number) run of fault reports,
@@ -192,10 +229,18 @@ pub fn can_records(name: &str, origin: &str, reader: impl BufRead) -> (Vec<Relea
             continue;
         };
         let (supply, leak) = can_estimates(&report);
+        let decoded = CanReport {
+            time_s: rec.time_us as f64 / 1e6,
+            can_release: id.release,
+            report,
+            current: !reception.stale,
+            lost_before: reception.lost_fault_reports,
+        };
         let fill = |r: &mut ReleaseRecord| {
             r.verdict = Some(report.verdict);
             r.supply_bar_g = supply;
             r.leak_mm = leak;
+            r.detail.can_reports.push(decoded);
         };
         match open.get(&id.locomotive) {
             Some(&(release, index)) if release == id.release => fill(&mut records[index]),
@@ -217,6 +262,7 @@ pub fn can_records(name: &str, origin: &str, reader: impl BufRead) -> (Vec<Relea
                     label: None,
                     content_hash: None,
                     numbered: false,
+                    detail: ReleaseDetail::default(),
                 };
                 *n += 1;
                 fill(&mut r);

@@ -65,6 +65,7 @@ pub fn observe(o: &DegradationOptions) -> Result<Vec<Observed>> {
                 label: Some(truth.label.label().to_owned()),
                 content_hash: None,
                 numbered: true,
+                detail: Default::default(),
             };
             Ok(Observed { truth, record })
         })
@@ -74,7 +75,7 @@ pub fn observe(o: &DegradationOptions) -> Result<Vec<Observed>> {
 /// The parameter that a wear drives toward a fault.
 pub fn parameter_of(w: Wear) -> Option<Parameter> {
     match w {
-        Wear::Healthy => None,
+        Wear::Healthy | Wear::Sensor => None,
         Wear::Leak => Some(Parameter::Leak),
         Wear::Clog => Some(Parameter::Orifice),
     }

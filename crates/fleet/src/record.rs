@@ -60,6 +60,88 @@ pub struct ReleaseRecord {
     /// `true` when the release number is the trace's own `release` metadata (not its rank in a
     /// data set): then (locomotive, release number) names the release.
     pub numbered: bool,
+    /// The release curve and the decoded CAN reports, when the input gave them.
+    pub detail: ReleaseDetail,
+}
+
+/// What a locomotive page shows of one release besides its verdict and estimates: the
+/// measured pressure against the twin's, and the fault reports the cab received.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ReleaseDetail {
+    /// Measured and twin pressure over the release (a replayed trace only; a CAN log carries no
+    /// pressure curve).
+    pub curve: Option<ReleaseCurve>,
+    /// The fault reports of the release as the cab display decodes them, in order.
+    pub can_reports: Vec<CanReport>,
+}
+
+/// Measured and twin chamber pressure of one release, thinned to [`CURVE_STEP_S`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ReleaseCurve {
+    /// Time between points, s.
+    pub step_s: f64,
+    /// Measured pressure, bar g (`NaN` where the monitor found the sample faulty).
+    pub measured_bar: Vec<f32>,
+    /// The nominal twin's pressure for the same valve command, bar g.
+    pub twin_bar: Vec<f32>,
+}
+
+/// Time between the stored points of a release curve, s (5 points a second: a 60 s release is
+/// 300 points, 1.2 kB in the database, and the curve's shape on a page-wide plot is intact).
+pub const CURVE_STEP_S: f64 = 0.2;
+
+impl ReleaseCurve {
+    /// Both series as one blob: per point two little-endian `i16` of mbar, measured then twin;
+    /// `i16::MIN` marks a missing (faulty) measured sample.
+    pub fn to_blob(&self) -> Vec<u8> {
+        let code = |v: f32| {
+            if v.is_finite() {
+                (f64::from(v) * 1000.0).round().clamp(-32_767.0, 32_767.0) as i16
+            } else {
+                i16::MIN
+            }
+        };
+        let mut out = Vec::with_capacity(self.measured_bar.len() * 4);
+        for (&m, &t) in self.measured_bar.iter().zip(&self.twin_bar) {
+            out.extend_from_slice(&code(m).to_le_bytes());
+            out.extend_from_slice(&code(t).to_le_bytes());
+        }
+        out
+    }
+
+    /// The inverse of [`Self::to_blob`]; `None` for a blob that is not whole points.
+    pub fn from_blob(step_s: f64, blob: &[u8]) -> Option<Self> {
+        if blob.len() % 4 != 0 || !(step_s.is_finite() && step_s > 0.0) {
+            return None;
+        }
+        let value = |b: &[u8]| {
+            let v = i16::from_le_bytes([b[0], b[1]]);
+            if v == i16::MIN {
+                f32::NAN
+            } else {
+                f32::from(v) / 1000.0
+            }
+        };
+        let (measured_bar, twin_bar) = blob.chunks_exact(4).map(|p| (value(&p[..2]), value(&p[2..]))).unzip();
+        Some(Self { step_s, measured_bar, twin_bar })
+    }
+}
+
+/// One fault report as the cab display decoded it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CanReport {
+    /// Time of the frame, s since the start of the release (replayed trace) or on the log's
+    /// clock (CAN log).
+    pub time_s: f64,
+    /// The 6-bit release number the frame carries.
+    pub can_release: u8,
+    /// The report.
+    pub report: FaultReport,
+    /// `false` when the report came while no heartbeat vouched for the sender (the display
+    /// shows it as stale).
+    pub current: bool,
+    /// Fault reports the sender sent before this one that the display never received.
+    pub lost_before: u8,
 }
 
 impl ReleaseRecord {
@@ -98,6 +180,22 @@ impl ReleaseRecord {
             Some(Verdict::CannotDiagnose(why)) => Some(why.to_string()),
             _ => None,
         }
+    }
+}
+
+/// Calibrated confidence of a verdict that names a class, per cent.
+pub fn confidence_of(v: &Verdict) -> Option<u8> {
+    match v {
+        Verdict::Class { confidence_pct, .. } => Some(*confidence_pct),
+        Verdict::CannotDiagnose(_) => None,
+    }
+}
+
+/// Why a verdict names no class, in the core's words.
+pub fn no_diagnosis_of(v: &Verdict) -> Option<String> {
+    match v {
+        Verdict::CannotDiagnose(why) => Some(why.to_string()),
+        Verdict::Class { .. } => None,
     }
 }
 

@@ -6,7 +6,9 @@
 //! times. A *healthy* locomotive stays at its own parameters; a *leaking* one grows a leak to
 //! atmosphere linearly from 0 at release `onset` to `leak_end_mm` at the last release; a
 //! *clogging* one has its release orifice shrink linearly from 1.25 mm at `onset` to
-//! `orifice_end_mm`. The plant is the f64 reference twin and the sensor is SPEC §5's (σ =
+//! `orifice_end_mm`; a *failing-transducer* one keeps a healthy brake and its pressure
+//! transducer shows the generator's sensor fault ([`DEFAULT_SENSOR_FAULT`]) from `onset` on. The
+//! plant is the f64 reference twin and the sensor is SPEC §5's (σ =
 //! 0.01 bar noise, 12-bit ADC), through the generator's own functions, so a degraded release is
 //! drawn like any generated release.
 //!
@@ -25,6 +27,7 @@ use pbm_io::dataset::{write_manifest, ManifestRow, MANIFEST};
 use pbm_io::trace::write_adc_trace;
 use pbm_lab::generate::{fleet, simulate_plant, transducer_noise, GENERATE_STEP_S, NOISE_SIGMA_BAR, TRACE_SAMPLES};
 pub use pbm_lab::generate::{BLOCK_MM, LEAK_MM};
+use pbm_lab::sensor_faults::{sense_with_faults, FaultKind, FaultSpec, Onset};
 use rand_chacha::ChaCha8Rng;
 use rand_core::SeedableRng;
 use rayon::prelude::*;
@@ -39,6 +42,9 @@ pub enum Wear {
     Leak,
     /// The release orifice clogs.
     Clog,
+    /// The brake stays healthy; the pressure transducer fails from the onset on
+    /// ([`DegradationOptions::sensor_fault`] on every release from then).
+    Sensor,
 }
 
 /// What a degradation data set holds.
@@ -56,13 +62,30 @@ pub struct DegradationOptions {
     pub leak_end_mm: f64,
     /// Release orifice diameter at the last release, mm.
     pub orifice_end_mm: f64,
+    /// The transducer fault of a [`Wear::Sensor`] locomotive (the generator's `--sensor-fault`
+    /// faults), applied to every release from the onset on.
+    pub sensor_fault: FaultSpec,
 }
+
+/// The transducer fault of a [`Wear::Sensor`] locomotive by default: spikes (isolated readings
+/// 0.5–3 bar off, e.g. a loose connector) on 1 % of the samples from a moment drawn per release
+/// in its first 50 s. The monitor flags them as a sensor fault and declines to diagnose. (A gain
+/// error of −25 % is not flagged: it reads as a low supply, the monitor cannot tell them apart.)
+pub const DEFAULT_SENSOR_FAULT: FaultSpec = FaultSpec { kind: FaultKind::Spikes, value: 0.01, onset: Onset::Random };
 
 impl DegradationOptions {
     /// The default scenario of `wear`: 150 releases, wear from release 30, a leak reaching
     /// 1.0 mm or an orifice reaching 0.6 mm (both well inside the SPEC §4 fault ranges) at the end.
     pub fn new(seed: u64, wear: Vec<Wear>) -> Self {
-        Self { seed, wear, releases: 150, onset: 30, leak_end_mm: 1.0, orifice_end_mm: 0.6 }
+        Self {
+            seed,
+            wear,
+            releases: 150,
+            onset: 30,
+            leak_end_mm: 1.0,
+            orifice_end_mm: 0.6,
+            sensor_fault: DEFAULT_SENSOR_FAULT,
+        }
     }
 
     fn validate(&self) -> Result<()> {
@@ -92,6 +115,8 @@ pub struct DegradedRelease {
     pub params: TwinParams,
     /// SPEC §4 label of those parameters.
     pub label: FaultClass,
+    /// The transducer fault of this release, if the transducer is failing.
+    pub sensor_fault: Option<FaultSpec>,
 }
 
 /// The wear fraction at release `k`: 0 until `onset`, 1 at the last release.
@@ -125,7 +150,7 @@ pub fn plan(o: &DegradationOptions) -> Result<Vec<DegradedRelease>> {
             let f = fraction(o, k);
             let mut p = loco.params;
             match wear {
-                Wear::Healthy => {}
+                Wear::Healthy | Wear::Sensor => {}
                 // A leak of zero diameter is no leak: the plant then has none.
                 Wear::Leak => p.leak = Meters::from_mm(f * o.leak_end_mm),
                 Wear::Clog => {
@@ -139,6 +164,7 @@ pub fn plan(o: &DegradationOptions) -> Result<Vec<DegradedRelease>> {
                 release: k,
                 params: p,
                 label: label_of(&p),
+                sensor_fault: (*wear == Wear::Sensor && k >= o.onset).then_some(o.sensor_fault),
             });
         }
     }
@@ -154,7 +180,16 @@ pub fn simulate(seed: u64, r: &DegradedRelease) -> Result<Vec<u16>> {
     let mut rng = ChaCha8Rng::from_seed(key);
     let (p, _) = simulate_plant(&r.params, GENERATE_STEP_S, TRACE_SAMPLES)?;
     let noise = transducer_noise(p.len(), NOISE_SIGMA_BAR, &mut rng);
-    Ok(p.iter().zip(noise).map(|(&p, n)| adc_from_bar(BarG(p + n)).0).collect())
+    match r.sensor_fault {
+        None => Ok(p.iter().zip(noise).map(|(&p, n)| adc_from_bar(BarG(p + n)).0).collect()),
+        Some(spec) => {
+            // The fault's own stream, so the brake's noise is the same with and without it.
+            for (chunk, word) in key.chunks_exact_mut(8).zip([seed, 11, r.loco_index as u64, r.release as u64]) {
+                chunk.copy_from_slice(&word.to_le_bytes());
+            }
+            Ok(sense_with_faults(&p, &noise, &[spec], &mut ChaCha8Rng::from_seed(key)).0)
+        }
+    }
 }
 
 /// Writes the scenario as a data set (`manifest.csv`, `truth.csv`, one trace per release with
@@ -174,13 +209,16 @@ pub fn write(o: &DegradationOptions, out: &std::path::Path) -> Result<Vec<Degrad
         .map(|r| {
             let adc = simulate(o.seed, r)?;
             let file = format!("traces/{}_{:04}.csv", r.locomotive, r.release);
-            let meta = [
+            let mut meta = vec![
                 ("label", r.label.label().to_owned()),
                 ("locomotive", r.locomotive.clone()),
                 ("release", r.release.to_string()),
                 ("seed", o.seed.to_string()),
                 ("source", "host-sim fleet degrade: f64 reference twin, slow wear, 12-bit ADC".to_owned()),
             ];
+            if let Some(f) = r.sensor_fault {
+                meta.push(("sensor_fault", describe_fault(f)));
+            }
             let mut buf = Vec::with_capacity(adc.len() * 10 + 256);
             write_adc_trace(&mut buf, &meta, &adc)?;
             let path: PathBuf = out.join(&file);
@@ -209,4 +247,14 @@ pub fn write(o: &DegradationOptions, out: &std::path::Path) -> Result<Vec<Degrad
     }
     truth.finish()?;
     Ok(releases)
+}
+
+/// A fault spec as the generator's `--sensor-fault` argument writes it (`KIND[=VALUE]@ONSET`).
+pub fn describe_fault(spec: FaultSpec) -> String {
+    let v = if spec.value.is_nan() { String::new() } else { format!("={}", spec.value) };
+    let onset = match spec.onset {
+        Onset::At(t) => format!("@{t}"),
+        Onset::Random => "@random".to_owned(),
+    };
+    format!("{}{v}{onset}", spec.kind.name())
 }

@@ -167,6 +167,8 @@ pub fn to_record(s: &StoredRelease) -> ReleaseRecord {
         label: s.label.clone(),
         content_hash: s.content_hash.clone(),
         numbered: s.numbered,
+        // The trends need no curve or reports; the pages read them by the row id.
+        detail: Default::default(),
     }
 }
 

@@ -559,6 +559,7 @@ mod tests {
             label: None,
             content_hash: None,
             numbered: true,
+            detail: Default::default(),
         }
     }
 

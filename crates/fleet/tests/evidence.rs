@@ -34,6 +34,7 @@ fn rec(loco: &str, i: i64, verdict: Verdict, leak: f64, orifice: f64, supply: f6
         label: None,
         content_hash: Some(format!("{loco}-{i}")),
         numbered: true,
+        detail: Default::default(),
     }
 }
 
@@ -219,12 +220,18 @@ fn the_page_of_an_empty_history_says_so_and_look_alike_names_get_their_own_ids()
             db.store_file([Ok(healthy(loco, i))]).unwrap().unwrap();
         }
     }
+    // Each locomotive gets its own page file, linked from the fleet table.
     let html = pbm_fleet::report::html(&db, &rule).unwrap();
-    let ids: Vec<&str> =
-        html.match_indices("id=\"loco").map(|(at, _)| html[at + 4..].split('"').nth(1).unwrap()).collect();
-    assert_eq!(ids.len(), 3, "{ids:?}");
-    let unique: std::collections::HashSet<_> = ids.iter().collect();
-    assert_eq!(unique.len(), 3, "{ids:?}");
+    let pages: Vec<&str> =
+        html.match_indices("<a href=\"loco").map(|(at, _)| html[at + 9..].split('"').next().unwrap()).collect();
+    assert_eq!(pages.len(), 3, "{pages:?}");
+    let unique: std::collections::HashSet<_> = pages.iter().collect();
+    assert_eq!(unique.len(), 3, "{pages:?}");
+    let out = dir.path().join("report");
+    pbm_fleet::report::write(&db, &out, &rule).unwrap();
+    for p in pages {
+        assert!(out.join(p).is_file(), "{p}");
+    }
 }
 
 /// A growing leak holds the chamber below the supply, so the supply estimate falls with it

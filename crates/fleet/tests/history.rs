@@ -95,6 +95,7 @@ fn fake(origin: &str, k: i64) -> ReleaseRecord {
         label: None,
         content_hash: None,
         numbered: false,
+        detail: Default::default(),
     }
 }
 
@@ -223,6 +224,10 @@ fn cab_can_logs_are_ingested_per_locomotive_and_release() {
         for (c, t) in can.iter().zip(&traces) {
             assert_eq!(c.verdict, t.verdict, "{loco} release {}", t.release_no);
             assert!(c.orifice_mm.is_none(), "CAN carries no orifice estimate");
+            // Each CAN release keeps its decoded reports: the last one is its verdict.
+            let reports = db.can_reports(c.id).unwrap();
+            assert_eq!(reports.last().map(|r| r.verdict.as_str()), Some(c.verdict.as_str()));
+            assert!(db.curve(c.id).unwrap().is_none(), "CAN carries no pressure curve");
         }
     }
     // Directly: a log of nothing but junk gives errors with lines and no release.
@@ -251,7 +256,7 @@ fn trends_follow_one_source_per_locomotive() {
 }
 
 #[test]
-fn the_fleet_page_leads_with_the_locomotives_and_names_no_code() {
+fn the_fleet_page_leads_with_the_locomotives_and_links_their_pages() {
     let dir = tempfile::tempdir().unwrap();
     let set = small_set(dir.path(), "a", 41, vec![Wear::Healthy, Wear::Leak]);
     let mut db = FleetDb::open(&dir.path().join("fleet.sqlite")).unwrap();
@@ -259,15 +264,150 @@ fn the_fleet_page_leads_with_the_locomotives_and_names_no_code() {
     let out = dir.path().join("report");
     let path = pbm_fleet::report::write(&db, &out, &Default::default()).unwrap();
     let html = std::fs::read_to_string(path).unwrap();
-    let found = pbm_report::report_html::check(&html, &["fleet", "loco-loco01", "loco-loco02"]).unwrap();
-    assert_eq!(found.sections[0], "fleet", "the fleet table comes first");
-    // Two sparklines and three trend charts per locomotive.
-    assert_eq!(found.svgs, 2 + 2 * 3);
+    let found = pbm_report::report_html::check(&html, &["fleet"]).unwrap();
+    assert_eq!(found.sections, ["fleet"]);
+    // One sparkline per locomotive, one row per locomotive, each linked to its page.
+    assert_eq!(found.svgs, 2);
     assert_eq!(found.table_rows, 2);
     assert!(pbm_report::report_html::code_reference(&html).is_none());
-    // Plot text at 12 px, no smaller font anywhere in the charts.
-    assert!(html.contains("font-size=\"12\""));
-    assert!(!html.contains("SPARKLINE-"));
+    assert!(html.contains("<a href=\"loco-loco01.html\"><strong>loco-01</strong></a>"), "link");
+    assert!(html.contains("Calibrated confidence"));
+    for (page, _) in [("loco-loco01.html", 0), ("loco-loco02.html", 1)] {
+        let loco = std::fs::read_to_string(out.join(page)).unwrap();
+        let found = pbm_report::report_html::check(&loco, &pbm_fleet::report::LOCOMOTIVE_SECTIONS).unwrap();
+        assert_eq!(found.sections, pbm_fleet::report::LOCOMOTIVE_SECTIONS);
+        // Two release curves (the latest and the first), three trends.
+        assert_eq!(found.svgs, 2 + 3, "{page}");
+        assert!(loco.contains("chamber pressure, bar g") && loco.contains("time since the release command, s"));
+        assert!(loco.contains("<a href=\"index.html\">Back to the fleet</a>"));
+        // The decoded CAN reports of the latest releases: verdict, confidence, freshness.
+        assert!(loco.contains("Decoded fault reports of") && loco.contains("current"), "{page}");
+        assert!(pbm_report::report_html::code_reference(&loco).is_none());
+        // Plot text at 12 px, no smaller font anywhere in the charts.
+        assert!(
+            loco.contains("font-size=\"12\"") && !loco.contains("font-size=\"1\"") && !loco.contains("font-size=\"9")
+        );
+    }
+}
+
+#[test]
+fn ingest_keeps_each_release_curve_and_the_reports_the_cab_decoded() {
+    let dir = tempfile::tempdir().unwrap();
+    let set = small_set(dir.path(), "a", 43, vec![Wear::Leak]);
+    let mut db = FleetDb::open(&dir.path().join("fleet.sqlite")).unwrap();
+    ingest(&mut db, &[&set], &opts()).unwrap();
+    for r in db.releases("loco-01").unwrap() {
+        let curve = db.curve(r.id).unwrap().expect("a replayed trace has a curve");
+        // 60 s at 100 Hz thinned to 5 points a second.
+        assert_eq!(curve.twin_bar.len(), 300, "release {}", r.release_no);
+        assert!((curve.step_s - pbm_fleet::record::CURVE_STEP_S).abs() < 1e-12);
+        let last = curve.measured_bar.last().copied().unwrap();
+        assert!((6.5..8.5).contains(&last), "settles near the supply: {last}");
+        assert!(curve.twin_bar.iter().all(|v| v.is_finite()));
+        let reports = db.can_reports(r.id).unwrap();
+        assert!(!reports.is_empty(), "release {}: the controller sent fault reports", r.release_no);
+        let final_report = reports.last().unwrap();
+        // The cab's last report of the release is the diagnosis the replay closed.
+        assert_eq!(final_report.verdict, r.verdict, "release {}", r.release_no);
+        assert_eq!(final_report.confidence_pct, r.confidence_pct);
+        assert!(reports.iter().all(|c| c.current && c.lost_before == 0), "a clean replay: all current");
+        assert!(reports.windows(2).all(|w| w[0].since_command_s <= w[1].since_command_s));
+    }
+    // Re-ingesting replaces the curve and the reports instead of adding to them.
+    let before: Vec<usize> =
+        db.releases("loco-01").unwrap().iter().map(|r| db.can_reports(r.id).unwrap().len()).collect();
+    ingest(&mut db, &[&set], &opts()).unwrap();
+    let after: Vec<usize> =
+        db.releases("loco-01").unwrap().iter().map(|r| db.can_reports(r.id).unwrap().len()).collect();
+    assert_eq!(before, after);
+}
+
+/// The schema of a version-2 database, as the tool wrote it before curves and CAN reports
+/// were kept (copied from that version).
+const SCHEMA_2: &str = "
+CREATE TABLE releases (
+    id             INTEGER PRIMARY KEY,
+    locomotive     TEXT    NOT NULL,
+    source         TEXT    NOT NULL CHECK (source IN ('trace', 'can')),
+    origin         TEXT    NOT NULL,
+    release_key    TEXT    NOT NULL,
+    release_no     INTEGER NOT NULL,
+    time_s         REAL,
+    verdict        TEXT    NOT NULL,
+    confidence_pct INTEGER CHECK (confidence_pct BETWEEN 0 AND 100),
+    no_diagnosis   TEXT,
+    orifice_mm     REAL,
+    leak_mm        REAL,
+    supply_bar_g   REAL,
+    label          TEXT,
+    content_hash   TEXT,
+    numbered       INTEGER NOT NULL DEFAULT 0,
+    ingested_at    TEXT    NOT NULL DEFAULT (strftime('%Y-%m-%dT%H:%M:%fZ', 'now')),
+    UNIQUE (locomotive, source, origin, release_key)
+);
+CREATE INDEX releases_by_loco ON releases (locomotive, release_no, time_s);
+CREATE INDEX releases_by_hash ON releases (locomotive, content_hash);
+INSERT INTO releases (locomotive, source, origin, release_key, release_no, verdict, confidence_pct, orifice_mm,
+                      leak_mm, supply_bar_g, numbered)
+VALUES ('loco-07', 'trace', '/old/loco-07_0000.csv', '0', 0, 'air_leak', 93, 1.24, 0.71, 7.69, 1);
+PRAGMA user_version = 2;
+";
+
+#[test]
+fn a_schema_2_database_still_opens_and_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("v2.sqlite");
+    {
+        let conn = rusqlite::Connection::open(&path).unwrap();
+        conn.execute_batch(SCHEMA_2).unwrap();
+    }
+    let mut db = FleetDb::open(&path).unwrap();
+    assert_eq!(db.schema_version().unwrap(), pbm_fleet::db::SCHEMA_VERSION);
+    let old = db.releases("loco-07").unwrap();
+    assert_eq!(old.len(), 1);
+    assert_eq!((old[0].verdict.as_str(), old[0].confidence_pct, old[0].leak_mm), ("air_leak", Some(93), Some(0.71)));
+    // Stored before curves and reports were kept: none, and the pages say so.
+    assert!(db.curve(old[0].id).unwrap().is_none());
+    assert!(db.can_reports(old[0].id).unwrap().is_empty());
+    let out = dir.path().join("report");
+    pbm_fleet::report::write(&db, &out, &Default::default()).unwrap();
+    let page = std::fs::read_to_string(out.join("loco-loco07.html")).unwrap();
+    assert!(page.contains("No pressure curve is stored") && page.contains("No decoded fault reports are stored"));
+    // New releases go in next to the old one.
+    db.store_file((0..3).map(|k| Ok(fake("new.csv", k)))).unwrap().unwrap();
+    assert_eq!(db.count().unwrap(), 4);
+    assert_eq!(db.integrity_check().unwrap(), "ok");
+}
+
+#[test]
+fn the_fleet_table_says_when_the_recent_releases_disagree() {
+    use pbm::report::Verdict;
+    use pbm::FaultClass;
+    let dir = tempfile::tempdir().unwrap();
+    let mut db = FleetDb::open(&dir.path().join("fleet.sqlite")).unwrap();
+    let with = |k: i64, class: FaultClass, c: u8| {
+        let mut r = fake("t.csv", k);
+        r.verdict = Some(Verdict::Class { class, confidence_pct: c });
+        r
+    };
+    // Twenty settled healthy releases, then ten that flip between healthy and a leak.
+    let mut rs: Vec<ReleaseRecord> = (0..20).map(|k| with(k, FaultClass::Normal, 97)).collect();
+    rs.extend((20..30).map(|k| with(k, if k % 2 == 0 { FaultClass::AirLeak } else { FaultClass::Normal }, 71)));
+    db.store_file(rs.into_iter().map(Ok)).unwrap().unwrap();
+    let stored = db.releases("loco-09").unwrap();
+    let recent = pbm_fleet::report::RecentVerdicts::of(&stored);
+    assert_eq!((recent.releases, recent.diagnosed, recent.agree), (10, 10, 5));
+    assert!(recent.disagree());
+    let s = pbm_fleet::status::status(&db, &Default::default()).unwrap();
+    let cell = pbm_fleet::report::confidence_cell(&s[0], &recent);
+    assert!(cell.text.starts_with("releases disagree: air leak 5, healthy 5 of the last 10"), "{}", cell.text);
+    // Settled: the calibrated confidence the monitor sent, and how many agree.
+    let settled = pbm_fleet::report::RecentVerdicts::of(&stored[..20]);
+    assert!(!settled.disagree());
+    let mut s0 = s[0].clone();
+    s0.latest_verdict = Some(("normal".into(), Some(97)));
+    let cell = pbm_fleet::report::confidence_cell(&s0, &settled);
+    assert_eq!(cell.text, "97 % healthy; 10 of the last 10 agree");
 }
 
 #[test]
@@ -326,4 +466,21 @@ fn many_first_opens_of_a_new_database_at_once_all_succeed() {
             assert!(opened.is_ok(), "round {round}: {opened:?}");
         }
     }
+}
+
+#[test]
+fn a_failing_transducer_locomotive_is_a_sensor_warning_not_a_brake_fault() {
+    let dir = tempfile::tempdir().unwrap();
+    let set = small_set(dir.path(), "a", 47, vec![Wear::Healthy, Wear::Sensor]);
+    let mut db = FleetDb::open(&dir.path().join("fleet.sqlite")).unwrap();
+    ingest(&mut db, &[&set], &opts()).unwrap();
+    let s = pbm_fleet::status::status(&db, &Default::default()).unwrap();
+    assert!(s[0].undiagnosed.is_empty(), "{:?}", s[0].undiagnosed);
+    // From the onset (release 2 of 8) on, every release is declined as a sensor fault.
+    let sensor: Vec<_> = s[1].undiagnosed.iter().filter(|u| u.sensor).collect();
+    assert_eq!(sensor.len(), 1, "{:?}", s[1].undiagnosed);
+    assert_eq!((sensor[0].count, sensor[0].first_release_no), (6, 2), "{:?}", sensor[0]);
+    assert!(s[1].warnings.is_empty(), "no brake warning from a failing transducer");
+    let lines = pbm_fleet::status::lines(&s);
+    assert!(lines[1].contains("SENSOR WARNING"), "{}", lines[1]);
 }

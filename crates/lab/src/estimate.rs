@@ -392,13 +392,16 @@ pub fn write_results_csv(path: &Path, results: &[CaseResult]) -> Result<()> {
     f.finish()
 }
 
+/// One colour per class in [`FaultClass`] order, then "other": the Okabe–Ito palette, so that
+/// the five classes stay distinct for colour-blind readers and in print (the former palette
+/// drew normal and low supply in two near-identical greens).
 const CLASS_COLOURS: [plotters::style::RGBColor; 6] = [
-    plotters::style::RGBColor(0x1b, 0x9e, 0x77),
-    plotters::style::RGBColor(0xd9, 0x5f, 0x02),
-    plotters::style::RGBColor(0x75, 0x70, 0xb3),
-    plotters::style::RGBColor(0xe7, 0x29, 0x8a),
-    plotters::style::RGBColor(0x66, 0xa6, 0x1e),
-    plotters::style::RGBColor(0x99, 0x99, 0x99),
+    pbm_report::chart::OKABE_ITO[0],
+    pbm_report::chart::OKABE_ITO[1],
+    pbm_report::chart::OKABE_ITO[2],
+    pbm_report::chart::OKABE_ITO[4],
+    pbm_report::chart::OKABE_ITO[3],
+    pbm_report::chart::OKABE_ITO[7],
 ];
 
 /// Writes one scatter plot (SVG) of the final RLS estimates of `x` against `y`, by class.

@@ -1316,7 +1316,13 @@ pub fn curves_svg(rows: &[MetroRow], out: &MetroOutcome) -> Result<String> {
         root.fill(&WHITE).map_err(e)?;
         let t_end = rows.last().map_or(1.0, |r| r.t_s / 60.0);
         let mut chart = ChartBuilder::on(&root)
-            .caption(format!("MetroPT-3 TP3: measured vs adiabatic vs {}", out.cause), ("sans-serif", 18))
+            .caption(
+                format!(
+                    "MetroPT-3 reservoir pressure: measured, adiabatic, with {}",
+                    out.cause.replace('_', " ").replace('+', " + ")
+                ),
+                ("sans-serif", 18),
+            )
             .margin(10)
             .x_label_area_size(30)
             .y_label_area_size(50)

@@ -415,6 +415,19 @@ pub fn replay_item_after(
     opts: &ReplayOptions,
     earlier_releases: u8,
 ) -> Result<TraceReplay, ReplayError> {
+    replay_item_observing(item, opts, earlier_releases, opts.can_log.is_some(), |_| {})
+}
+
+/// [`replay_item_after`] that also keeps the frames sent when `keep_frames` (whatever
+/// `opts.can_log` says) and shows every replayed sample to `observe` (e.g. to keep a thinned
+/// release curve), so a caller that needs them does not replay twice.
+pub fn replay_item_observing(
+    item: &TraceItem,
+    opts: &ReplayOptions,
+    earlier_releases: u8,
+    keep_frames: bool,
+    mut observe: impl FnMut(&ReplaySample),
+) -> Result<TraceReplay, ReplayError> {
     let mut reader = TraceReader::open(&item.path).map_err(FileError::from)?;
     let label = item.label.clone().or_else(|| reader.meta("label").map(str::to_owned)).unwrap_or_else(|| "-".into());
     let locomotive =
@@ -431,7 +444,8 @@ pub fn replay_item_after(
     };
     let mut series: Option<PlotSeries> = opts.plot.as_ref().map(|_| PlotSeries::default());
     let mut summariser = Summariser::default();
-    let run = replay_samples(stream(&mut reader), opts.can_log.is_some(), identity, |s| {
+    let run = replay_samples(stream(&mut reader), keep_frames, identity, |s| {
+        observe(s);
         summariser.push(s);
         if let Some(f) = results.as_mut() {
             f.record(result_fields(s))?;

@@ -26,6 +26,21 @@ pub struct ChartLabels<'a> {
     pub y: &'a str,
 }
 
+/// The Okabe–Ito palette (Okabe & Ito, "Color Universal Design"): eight colours that stay
+/// distinct with the common colour-vision deficiencies and in greyscale print, in an order where
+/// the first five are the most distinct: blue, vermillion, bluish green, orange, reddish purple,
+/// sky blue, yellow, black. The fault classes are drawn in this order.
+pub const OKABE_ITO: [RGBColor; 8] = [
+    RGBColor(0x00, 0x72, 0xB2),
+    RGBColor(0xD5, 0x5E, 0x00),
+    RGBColor(0x00, 0x9E, 0x73),
+    RGBColor(0xE6, 0x9F, 0x00),
+    RGBColor(0xCC, 0x79, 0xA7),
+    RGBColor(0x56, 0xB4, 0xE9),
+    RGBColor(0xF0, 0xE4, 0x42),
+    RGBColor(0x00, 0x00, 0x00),
+];
+
 /// A qualitative palette for up to eight series.
 pub const PALETTE: [RGBColor; 8] = [
     RGBColor(31, 119, 180),

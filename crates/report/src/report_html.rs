@@ -20,6 +20,11 @@ pub struct Cell {
     pub strong: bool,
     /// Monospace (e.g. a cab display line or a CAN frame).
     pub mono: bool,
+    /// A link target relative to the page (another page of the same report, or `#id`); an
+    /// absolute or external address is rendered as plain text.
+    pub link: Option<String>,
+    /// An inline SVG drawn after the text (e.g. a sparkline); only its `<svg>` element is kept.
+    pub svg: Option<String>,
 }
 
 impl Cell {
@@ -36,6 +41,18 @@ impl Cell {
     /// A monospace cell.
     pub fn mono(text: impl Into<String>) -> Self {
         Self { text: text.into(), mono: true, ..Self::default() }
+    }
+
+    /// This cell as a link to `href`, a file next to the page or an `#id` on it.
+    pub fn with_link(mut self, href: impl Into<String>) -> Self {
+        self.link = Some(href.into());
+        self
+    }
+
+    /// This cell with an inline SVG after its text.
+    pub fn with_svg(mut self, svg: impl Into<String>) -> Self {
+        self.svg = Some(svg.into());
+        self
     }
 
     /// This cell with a background colour.
@@ -104,6 +121,9 @@ pub enum Block {
     Pre(String),
     /// A subheading inside a section.
     Heading(String),
+    /// A line of links to other pages of the same report or to sections, as (text, target);
+    /// targets that are not [relative](Cell::with_link) are shown as plain text.
+    Links(Vec<(String, String)>),
 }
 
 /// A section of the page with a stable `id` (the tests look sections up by it).
@@ -176,10 +196,13 @@ section{background:#fff;border:1px solid #d6dce3;border-radius:6px;padding:4px 1
 table{border-collapse:collapse;margin:8px 0 14px;font-size:.92em}\
 caption{text-align:left;font-weight:600;padding:4px 0;color:#2c3a47}\
 th,td{border:1px solid #cfd6de;padding:3px 8px;text-align:left;vertical-align:top}\
-th{background:#eef2f6}td.num{text-align:right}.mono{font-family:ui-monospace,Consolas,monospace;font-size:.9em;white-space:pre}\
+th{background:#eef2f6}td.num{text-align:right}.mono{font-family:ui-monospace,Consolas,monospace;font-size:.9em;white-space:pre-wrap}\
+td{overflow-wrap:break-word}table{max-width:100%}\
 figure{margin:10px 0 16px}figcaption{color:#4a5663;font-size:.9em;margin-top:2px}\
 figure svg{max-width:100%;height:auto;border:1px solid #e1e6eb}\
-.gallery{display:flex;flex-wrap:wrap;gap:12px}.gallery figure{flex:0 1 calc(50% - 6px);min-width:420px;margin:4px 0}\
+.gallery{display:flex;flex-wrap:wrap;gap:12px}.gallery figure{flex:0 1 auto;margin:4px 0}\
+td svg{display:block;margin-top:2px}\
+td a,p a{color:#1f5fa8}\
 pre{background:#f3f5f7;border:1px solid #dde3e9;padding:8px;overflow-x:auto;font-size:.85em}\
 .note{color:#56636f;font-size:.9em}\
 .callout{background:#fff8db;border:1px solid #e6d28a;border-radius:4px;padding:8px 12px}";
@@ -187,6 +210,13 @@ pre{background:#f3f5f7;border:1px solid #dde3e9;padding:8px;overflow-x:auto;font
 fn looks_numeric(s: &str) -> bool {
     let t = s.trim().trim_end_matches('%').trim_end_matches(" s").trim();
     !t.is_empty() && t.parse::<f64>().is_ok()
+}
+
+/// Whether `href` stays inside the report: a file name next to the page (letters, digits, `-`,
+/// `_`, `.`, no `..`) or an `#id`.
+fn relative_link(href: &str) -> bool {
+    let ok = |c: char| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.' | '#');
+    !href.is_empty() && href.chars().all(ok) && !href.contains("..")
 }
 
 fn render_table(out: &mut String, t: &Table) {
@@ -219,10 +249,15 @@ fn render_table(out: &mut String, t: &Table) {
                 let _ = write!(out, " style=\"background:{}\"", escape(bg));
             }
             out.push('>');
-            if c.strong {
-                let _ = write!(out, "<strong>{}</strong>", escape(&c.text));
-            } else {
-                out.push_str(&escape(&c.text));
+            let text = if c.strong { format!("<strong>{}</strong>", escape(&c.text)) } else { escape(&c.text) };
+            match c.link.as_deref().filter(|h| relative_link(h)) {
+                Some(href) => {
+                    let _ = write!(out, "<a href=\"{}\">{text}</a>", escape(href));
+                }
+                None => out.push_str(&text),
+            }
+            if let Some(svg) = c.svg.as_deref().and_then(svg_element) {
+                out.push_str(svg);
             }
             out.push_str("</td>");
         }
@@ -231,11 +266,35 @@ fn render_table(out: &mut String, t: &Table) {
     out.push_str("</tbody></table>\n");
 }
 
+/// Smallest text in an inlined plot, px: readable when printed.
+pub const MIN_PLOT_TEXT_PX: f64 = 12.0;
+
+/// `svg` with every `font-size="…"` below [`MIN_PLOT_TEXT_PX`] raised to it (the plotting
+/// library's default axis text is under 10 px).
+pub fn readable_svg(svg: &str) -> String {
+    const KEY: &str = "font-size=\"";
+    let mut out = String::with_capacity(svg.len());
+    let mut rest = svg;
+    while let Some(at) = rest.find(KEY) {
+        out.push_str(&rest[..at + KEY.len()]);
+        rest = &rest[at + KEY.len()..];
+        let end = rest.find('"').unwrap_or(rest.len());
+        let value = &rest[..end];
+        match value.trim_end_matches("px").parse::<f64>() {
+            Ok(v) if v < MIN_PLOT_TEXT_PX => out.push_str(&MIN_PLOT_TEXT_PX.to_string()),
+            _ => out.push_str(value),
+        }
+        rest = &rest[end..];
+    }
+    out.push_str(rest);
+    out
+}
+
 fn render_figure(out: &mut String, svg: &str, caption: &str) {
     out.push_str("<figure>");
     // Only the <svg> element is inlined; a document without one becomes a visible note.
     match svg_element(svg) {
-        Some(s) => out.push_str(s),
+        Some(s) => out.push_str(&readable_svg(s)),
         None => out.push_str("<p class=\"note\">(plot missing)</p>"),
     }
     if !caption.is_empty() {
@@ -273,6 +332,19 @@ pub fn render(page: &Page) -> String {
                 }
                 Block::Heading(t) => {
                     let _ = writeln!(out, "<h3>{}</h3>", escape(t));
+                }
+                Block::Links(links) => {
+                    let items: Vec<String> = links
+                        .iter()
+                        .map(|(text, href)| {
+                            if relative_link(href) {
+                                format!("<a href=\"{}\">{}</a>", escape(href), escape(text))
+                            } else {
+                                escape(text)
+                            }
+                        })
+                        .collect();
+                    let _ = writeln!(out, "<p class=\"links\">{}</p>", items.join(" · "));
                 }
                 Block::Pre(t) => {
                     let _ = writeln!(out, "<pre>{}</pre>", escape(t));
@@ -449,6 +521,15 @@ mod tests {
             Some("<svg a=\"1\"><path/></svg>")
         );
         assert_eq!(svg_element("no svg"), None);
+    }
+
+    #[test]
+    fn plot_text_is_raised_to_the_readable_minimum() {
+        let svg = "<svg><text font-size=\"9.677\">a</text><text font-size=\"16\">b</text><g font-size=\"10px\"/></svg>";
+        assert_eq!(
+            readable_svg(svg),
+            "<svg><text font-size=\"12\">a</text><text font-size=\"16\">b</text><g font-size=\"12\"/></svg>"
+        );
     }
 
     #[test]
