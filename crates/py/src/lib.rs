@@ -7,7 +7,7 @@
 //! as a `ValueError` (bad input) or `OSError` (a file that cannot be read or written) carrying the
 //! Rust message; nothing panics across the FFI boundary on bad input.
 
-use numpy::{PyArray1, PyReadonlyArray1, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
 use pbm::mechanism::Mechanism;
 use pbm::TwinParams;
 use pbm_lab::can_cmd::{confidence_pct, decode_log, verdict_label, CabDisplay, DecodeFormat};
@@ -130,17 +130,17 @@ fn replay<'py>(
     if adc.len() == 0 {
         return Err(value_error("adc is empty: a release needs at least one sample"));
     }
-    let counts = adc.as_slice().map_err(value_error)?.to_vec();
+    // `as_array` follows strides: a non-contiguous view (`adc[::2]`) is read, not refused.
+    let counts: Vec<u16> = adc.as_array().iter().copied().collect();
     if let Some(i) = counts.iter().position(|&c| c > ADC_MAX) {
         return Err(value_error(format!("adc[{i}] = {} is outside the 12-bit range 0..={ADC_MAX}", counts[i])));
     }
     let times = match t_s {
         None => default_times(counts.len()),
         Some(t) => {
-            let t: PyReadonlyArray1<'py, f64> = t
-                .extract()
-                .map_err(|_| value_error("t_s must be a 1-D numpy array of dtype float64 (seconds)"))?;
-            let t = t.as_slice().map_err(value_error)?.to_vec();
+            let t: PyReadonlyArray1<'py, f64> =
+                t.extract().map_err(|_| value_error("t_s must be a 1-D numpy array of dtype float64 (seconds)"))?;
+            let t: Vec<f64> = t.as_array().iter().copied().collect();
             if t.len() != counts.len() {
                 return Err(value_error(format!("t_s has {} samples, adc has {}", t.len(), counts.len())));
             }
@@ -246,7 +246,8 @@ fn simulate<'py>(
         other => return Err(value_error(format!("engine must be \"fixed\" or \"f64\", got {other:?}"))),
     };
     pbm_lab::simulate::check_duration(duration_s).map_err(anyhow_error)?;
-    let mut params = TwinParams::nominal().with_orifice_mm(orifice_mm).with_leak_mm(leak_mm).with_supply_bar_g(supply_bar);
+    let mut params =
+        TwinParams::nominal().with_orifice_mm(orifice_mm).with_leak_mm(leak_mm).with_supply_bar_g(supply_bar);
     for (name, value) in mechanisms.unwrap_or_default() {
         let m = Mechanism::from_name(&name).ok_or_else(|| {
             let known: Vec<&str> = Mechanism::ALL.iter().map(|m| m.name()).collect();
@@ -369,7 +370,12 @@ fn audit_json(py: Python<'_>, path: PathBuf, pairs: bool) -> PyResult<(String, S
 /// str: inputs refused, with file and line), `summary` (the CLI's line).
 #[pyfunction]
 #[pyo3(signature = (db, paths, threads = 0))]
-fn fleet_ingest<'py>(py: Python<'py>, db: PathBuf, paths: Vec<PathBuf>, threads: usize) -> PyResult<Bound<'py, PyDict>> {
+fn fleet_ingest<'py>(
+    py: Python<'py>,
+    db: PathBuf,
+    paths: Vec<PathBuf>,
+    threads: usize,
+) -> PyResult<Bound<'py, PyDict>> {
     if paths.is_empty() {
         return Err(value_error("give at least one trace, data set directory or candump log to ingest"));
     }

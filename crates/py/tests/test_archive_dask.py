@@ -127,3 +127,29 @@ def test_dask_local_cluster_of_2_workers_equals_the_single_process_run(small_arc
     table = pq.read_table(out)
     assert table.column_names == fleet_dask.RESULT_COLUMNS
     assert table.to_pylist() == local
+
+
+def test_dask_audit_per_locomotive_equals_the_audit_of_its_data_set(tmp_path):
+    """Each locomotive's releases, audited on a 2-worker cluster, give the audit `pbm.audit`
+    (= `host-sim audit`, tested in test_tools) gives on a data set directory of those traces."""
+    srcs = ["traces/train/normal_0000.csv", "traces/train/normal_0001.csv"]
+    releases, d = [], tmp_path / "set"
+    d.mkdir()
+    manifest = "file,label,locomotive,split\n"
+    for loco in ["loco-01", "loco-09"]:
+        for src in srcs:
+            t = pbm.read_trace(str(DATA / "small" / src))
+            releases.append(archive.Release(loco, src, t["t_s"], t["adc"], "normal", "train", t["meta"]))
+    for k, src in enumerate(srcs):
+        (d / f"n{k}.csv").write_text((DATA / "small" / src).read_text())
+        manifest += f"n{k}.csv,normal,loco-01,train\n"
+    (d / "manifest.csv").write_text(manifest)
+    path = str(tmp_path / "audit.parquet")
+    archive.write_archive(path, releases)
+    rows = fleet_dask.audit_run(path, workers=2, pairs=False)
+    assert [r["locomotive"] for r in rows] == ["loco-01", "loco-09"]
+    assert rows == fleet_dask.audit_local(path, pairs=False)
+    direct = pbm.audit(str(d), pairs=False)
+    assert rows[0]["verdict_text"] == direct["verdict_text"]
+    assert json.loads(rows[0]["json"]) == {k: v for k, v in direct.items() if k not in ("verdict_text", "skipped")}
+    assert rows[0]["json"] == rows[1]["json"]

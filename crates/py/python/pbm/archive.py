@@ -289,3 +289,20 @@ def releases_from_dataset(directory: str) -> Iterator[Release]:
             adc=trace["adc"],
             meta=trace["meta"],
         )
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """``python -m pbm.archive DATASET OUT.parquet``: writes a data set directory as an archive."""
+    import argparse
+
+    p = argparse.ArgumentParser(prog="python -m pbm.archive", description=main.__doc__)
+    p.add_argument("dataset", help="data set directory (manifest.csv + ADC traces)")
+    p.add_argument("out", help="the archive to write (Parquet)")
+    a = p.parse_args(argv)
+    n = write_archive(a.out, releases_from_dataset(a.dataset))
+    print(f"wrote {n} releases to {a.out}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
