@@ -2,7 +2,8 @@
 //!
 //! ```text
 //! cargo xtask setup             install what the project needs (Rust target, QEMU, LLVM tools,
-//!                               Chromium, can-utils, a Python venv with cantools); idempotent
+//!                               Chromium, can-utils, Python venvs with cantools and with the
+//!                               Python package's pinned dependencies); idempotent
 //! cargo xtask test-all          every check CI runs: setup, fmt, clippy, all tests, firmware
 //! cargo xtask demo [ARGS]       setup, then the main job: `host-sim demo ARGS`
 //! cargo xtask fw-qemu           firmware twin check (and its failing self-test), monitor run
@@ -13,6 +14,8 @@
 //!                               size against the 32 KiB / 8 KiB budget
 //! cargo xtask can-check         socketcan build, cantools decodes every frame the project emits
 //! cargo xtask report-check      `host-sim demo --quick` seen in headless Chromium
+//! cargo xtask python          the Python package: pip install ./crates/py into target/py-venv,
+//!                               pytest (Python = CLI = firmware frames, Dask local cluster)
 //! cargo xtask replay-memory     peak memory of `host-sim replay` on a 63 MB trace (≤ 64 MiB)
 //! cargo xtask shifted-sets      releases the model was not trained on: right / refused / wrong
 //! cargo xtask sensor-fault-battery [SEED]  every sensor fault on every class: no wrong class
@@ -26,6 +29,7 @@ mod board;
 mod can;
 mod firmware;
 mod fw_bench;
+mod python;
 mod replay_memory;
 mod report;
 mod setup;
@@ -35,7 +39,7 @@ use std::process::ExitCode;
 use util::{cargo, step, Result};
 
 const USAGE: &str = "usage: cargo xtask <setup | test-all | demo [ARGS] | fw-qemu | fw-can-equality | \
-fw-bench [--check] | fw-lint | fw-board | can-check | report-check | replay-memory | shifted-sets | sensor-fault-battery [SEED]>";
+fw-bench [--check] | fw-lint | fw-board | can-check | report-check | python | replay-memory | shifted-sets | sensor-fault-battery [SEED]>";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -61,6 +65,7 @@ fn main() -> ExitCode {
         ("can-check", []) => can::check(),
         ("report-check", []) => report::check(),
         ("replay-memory", []) => replay_memory::check(),
+        ("python", []) => python::task(),
         ("shifted-sets", []) => robustness(&["shifted-sets"]),
         ("sensor-fault-battery", seed) if seed.len() <= 1 => {
             robustness(&[&["sensor-fault-battery"][..], &seed.iter().map(String::as_str).collect::<Vec<_>>()].concat())
@@ -101,6 +106,8 @@ fn test_all() -> Result<()> {
     report::check()?;
     step("tests (host)");
     cargo(&["test", "--workspace"])?;
+    step("Python package: pip install ./crates/py, pytest (Python = CLI = firmware frames, Dask)");
+    python::check()?;
     step("replay of a 63 MB trace within 64 MiB");
     replay_memory::check()?;
     step("firmware in QEMU");

@@ -54,6 +54,7 @@ pub fn install() -> Result<()> {
         apt(&args)?;
     }
     cantools_venv()?;
+    crate::python::venv()?;
     defmt_print()?;
     let qemu = output(Command::new("qemu-system-arm").arg("--version"))?;
     println!("setup: {}", String::from_utf8_lossy(&qemu.stdout).lines().next().unwrap_or("qemu-system-arm"));
@@ -78,9 +79,18 @@ fn cantools_venv() -> Result<()> {
         return Ok(());
     }
     let venv = target_dir().join("can-venv");
+    make_venv(&venv)?;
+    println!("setup: cantools {CANTOOLS_VERSION} into {}", venv.display());
+    run(Command::new(&py)
+        .args(["-m", "pip", "install", "--quiet", "--disable-pip-version-check"])
+        .arg(format!("cantools=={CANTOOLS_VERSION}")))
+}
+
+/// Creates (anew) a venv at `venv`, installing python3-venv (apt) when `python3 -m venv` lacks it.
+pub fn make_venv(venv: &std::path::Path) -> Result<()> {
     let make = || {
-        let _ = std::fs::remove_dir_all(&venv);
-        output(Command::new("python3").args(["-m", "venv"]).arg(&venv)).is_ok_and(|o| o.status.success())
+        let _ = std::fs::remove_dir_all(venv);
+        output(Command::new("python3").args(["-m", "venv"]).arg(venv)).is_ok_and(|o| o.status.success())
     };
     if !make() {
         println!("setup: installing python3-venv (apt)");
@@ -89,10 +99,7 @@ fn cantools_venv() -> Result<()> {
             return Err(format!("cannot create a Python venv in {}", venv.display()));
         }
     }
-    println!("setup: cantools {CANTOOLS_VERSION} into {}", venv.display());
-    run(Command::new(&py)
-        .args(["-m", "pip", "install", "--quiet", "--disable-pip-version-check"])
-        .arg(format!("cantools=={CANTOOLS_VERSION}")))
+    Ok(())
 }
 
 /// `defmt-print` (the firmware's defmt log decoder) from crates.io, built with its own lock file.

@@ -49,16 +49,21 @@ pub fn run_status(a: &StatusRun) -> Result<()> {
     if !a.db.is_file() {
         bail!("{}: no fleet database (create one with `fleet ingest`)", a.db.display());
     }
-    let db = FleetDb::open(&a.db)?;
-    let rule = WarningRule::default();
-    let s = status(&db, &rule)?;
-    if s.is_empty() {
-        println!("no releases in {}", a.db.display());
-    }
-    for l in lines(&s) {
+    for l in status_lines(&a.db)? {
         println!("{l}");
     }
     Ok(())
+}
+
+/// The lines `fleet status` prints for the database `db` (which must exist): one per
+/// locomotive, or one line saying there are no releases.
+pub fn status_lines(db: &std::path::Path) -> Result<Vec<String>> {
+    let store = FleetDb::open(db)?;
+    let s = status(&store, &WarningRule::default())?;
+    if s.is_empty() {
+        return Ok(vec![format!("no releases in {}", db.display())]);
+    }
+    Ok(lines(&s))
 }
 
 /// `fleet degrade`: writes the slow-degradation scenario as a data set.

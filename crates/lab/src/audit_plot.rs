@@ -1,6 +1,6 @@
 //! Plots (SVG, plotters) and the self-contained HTML page of `host-sim audit`.
 
-use crate::audit::{audit, load_dataset, AuditOptions, AuditOutcome, AuditRunOptions, CurveSet};
+use crate::audit::{audit, load_dataset, AuditData, AuditOptions, AuditOutcome, AuditRunOptions, CurveSet};
 use anyhow::Context as _;
 use anyhow::{anyhow, Result};
 use pbm_io::error::Skipped;
@@ -325,9 +325,7 @@ pub fn run(path: &Path, a: &AuditRunOptions) -> Result<Skipped> {
     for w in &data.warnings {
         eprintln!("warning: {w}");
     }
-    let mut out = audit(&data, AuditOptions { pairs: a.pairs, ..AuditOptions::default() })?;
-    // A skipped trace is said in the JSON too, not only on stderr and in the exit code.
-    out.warnings.extend(skipped.errors().iter().map(|e| format!("skipped: {e}")));
+    let out = audit_loaded(&data, &skipped, a.pairs)?;
     print!("{}", out.summary());
     eprintln!(
         "audit of {} traces in {:.1} s",
@@ -336,6 +334,23 @@ pub fn run(path: &Path, a: &AuditRunOptions) -> Result<Skipped> {
     );
     write_outputs(&out, a.json.as_deref(), a.plot.as_deref(), a.report.as_deref())?;
     Ok(skipped)
+}
+
+/// The audit of a loaded data set as `host-sim audit` computes it (`pairs`: also try pairs of
+/// mechanisms); the traces `skipped` while loading are named in the outcome's warnings, so the
+/// JSON says them too, not only stderr and the exit code.
+pub fn audit_loaded(data: &AuditData, skipped: &Skipped, pairs: bool) -> Result<AuditOutcome> {
+    let mut out = audit(data, AuditOptions { pairs, ..AuditOptions::default() })?;
+    out.warnings.extend(skipped.errors().iter().map(|e| format!("skipped: {e}")));
+    Ok(out)
+}
+
+/// [`audit_loaded`] of the data set directory `path`: the audit `host-sim audit PATH --json`
+/// writes (the Python package calls it).
+pub fn audit_path(path: &Path, pairs: bool) -> Result<(AuditOutcome, Skipped)> {
+    let (data, skipped) = load_dataset(path)?;
+    let out = audit_loaded(&data, &skipped, pairs)?;
+    Ok((out, skipped))
 }
 
 /// Writes the JSON verdict, the plots (`curves_N.svg`, `residual_N.svg` per configuration group,

@@ -400,6 +400,13 @@ fn output_path(dir: &Path, name: &str, ext: &str) -> PathBuf {
     dir.join(name).with_extension(ext)
 }
 
+/// The identity a replayed release's CAN frames carry: the locomotive number of `locomotive`
+/// ([`pbm::can::codec::locomotive_number`]) and the release count of a monitor that has seen
+/// `earlier_releases` recorded releases before it (what the firmware sends).
+pub fn release_identity(locomotive: &str, earlier_releases: u8) -> Identity {
+    Identity { locomotive: pbm::can::codec::locomotive_number(locomotive), release: earlier_releases }
+}
+
 /// Replays one item and writes its outputs (results CSV, plot); a bad input removes what was
 /// written of them. Its CAN frames carry the locomotive number of the item's locomotive
 /// ([`pbm::can::codec::locomotive_number`]) and release number 2 (power-up 1, release command
@@ -432,7 +439,7 @@ pub fn replay_item_observing(
     let label = item.label.clone().or_else(|| reader.meta("label").map(str::to_owned)).unwrap_or_else(|| "-".into());
     let locomotive =
         item.locomotive.clone().or_else(|| reader.meta("locomotive").map(str::to_owned)).unwrap_or_else(|| "-".into());
-    let identity = Identity { locomotive: pbm::can::codec::locomotive_number(&locomotive), release: earlier_releases };
+    let identity = release_identity(&locomotive, earlier_releases);
     let results_path = opts.out.as_deref().map(|d| output_path(d, &item.name, "csv"));
     let mut results = match &results_path {
         Some(p) => {
@@ -536,16 +543,25 @@ pub fn replay_all(items: &[TraceItem], opts: &ReplayOptions) -> Result<Vec<Resul
 /// byte for byte what the firmware writes in QEMU. Returns the number of frames.
 pub fn write_can_log<'a>(path: &Path, replays: impl IntoIterator<Item = &'a Replayed>) -> Result<u64> {
     let file = std::fs::File::create(path).with_context(|| format!("cannot create {}", path.display()))?;
-    let mut sink = CandumpWriter::new(std::io::BufWriter::new(file), DEFAULT_IFACE);
+    write_can_log_to(std::io::BufWriter::new(file), replays).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// [`write_can_log`] into any writer (the Python package keeps the log in memory): the one
+/// place that lays out a replay's candump log. Returns the number of frames.
+pub fn write_can_log_to<'a, W: std::io::Write>(
+    out: W,
+    replays: impl IntoIterator<Item = &'a Replayed>,
+) -> std::io::Result<u64> {
+    let mut sink = CandumpWriter::new(out, DEFAULT_IFACE);
     let mut base_us = pbm::can::candump::LOG_EPOCH_US;
     for r in replays {
         for f in &r.frames {
-            sink.send(base_us + f.time_us, &f.frame).with_context(|| format!("cannot write {}", path.display()))?;
+            sink.send(base_us + f.time_us, &f.frame)?;
         }
         base_us += r.last_time_us + TRACE_GAP_US;
     }
     let frames = sink.frames();
-    sink.finish().with_context(|| format!("cannot write {}", path.display()))?;
+    sink.finish()?;
     Ok(frames)
 }
 

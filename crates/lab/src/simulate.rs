@@ -116,12 +116,18 @@ impl Default for SimulateOptions {
     }
 }
 
+/// Refuses a duration outside (0, 3600] s (what `simulate` accepts from a user).
+pub fn check_duration(duration_s: f64) -> anyhow::Result<()> {
+    if !(duration_s.is_finite() && duration_s > 0.0 && duration_s <= 3600.0) {
+        anyhow::bail!("the duration must be in (0, 3600] s, got {duration_s}");
+    }
+    Ok(())
+}
+
 /// Simulates one release and writes its trace (and plot).
 pub fn run(a: &SimulateOptions) -> anyhow::Result<()> {
     use anyhow::Context as _;
-    if !(a.duration_s.is_finite() && a.duration_s > 0.0 && a.duration_s <= 3600.0) {
-        anyhow::bail!("the duration must be in (0, 3600] s, got {}", a.duration_s);
-    }
+    check_duration(a.duration_s)?;
     let trace = simulate(a.engine, &a.params, a.duration_s).map_err(|e| anyhow::anyhow!("invalid parameters: {e}"))?;
     if let Some(path) = &a.plot {
         write_release_svg(path, &a.params, a.duration_s)?;
