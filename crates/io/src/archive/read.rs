@@ -4,11 +4,15 @@ use super::{check_samples, parse_meta_json, ArchivedRelease, COLUMNS, VERSION, V
 use crate::error::FileError;
 use parquet::basic::{ConvertedType, LogicalType, Repetition, Type as PhysicalType};
 use parquet::data_type::{ByteArray, ByteArrayType, DataType, DoubleType, Int32Type};
-use parquet::file::reader::{FileReader, RowGroupReader};
+use parquet::errors::ParquetError;
+use parquet::file::reader::{ChunkReader, FileReader, Length, RowGroupReader};
 use parquet::file::serialized_reader::SerializedFileReader;
 use pbm::sensor::ADC_FULL_SCALE;
 use std::collections::HashMap;
+use std::fs::File;
+use std::io::Read;
 use std::path::Path;
+use std::sync::Arc;
 
 /// Most samples one release may hold (8 Mi: 23 h at 100 Hz); a row group claiming more is
 /// refused before anything of it is read.
@@ -17,9 +21,70 @@ pub const MAX_RELEASE_SAMPLES: usize = 1 << 23;
 /// Rows decoded per call while a column is read.
 const BATCH_ROWS: usize = 8192;
 
+/// The archive file, read at explicit offsets (`pread`), so that several threads can read
+/// row groups at once: the parquet crate's reader of a `File` clones the handle, and the
+/// clones share one cursor, so concurrent reads would race (they did: a parallel replay read
+/// pages of another row group).
+struct PositionedFile(Arc<File>);
+
+/// A reader of [`PositionedFile`] from an offset on.
+struct PositionedRead {
+    file: Arc<File>,
+    pos: u64,
+}
+
+#[cfg(unix)]
+fn read_at(file: &File, buf: &mut [u8], pos: u64) -> std::io::Result<usize> {
+    std::os::unix::fs::FileExt::read_at(file, buf, pos)
+}
+
+#[cfg(windows)]
+fn read_at(file: &File, buf: &mut [u8], pos: u64) -> std::io::Result<usize> {
+    std::os::windows::fs::FileExt::seek_read(file, buf, pos)
+}
+
+impl Read for PositionedRead {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = read_at(&self.file, buf, self.pos)?;
+        self.pos += n as u64;
+        Ok(n)
+    }
+}
+
+impl Length for PositionedFile {
+    fn len(&self) -> u64 {
+        self.0.metadata().map_or(0, |m| m.len())
+    }
+}
+
+impl ChunkReader for PositionedFile {
+    type T = std::io::BufReader<PositionedRead>;
+
+    fn get_read(&self, start: u64) -> Result<Self::T, ParquetError> {
+        Ok(std::io::BufReader::new(PositionedRead { file: self.0.clone(), pos: start }))
+    }
+
+    fn get_bytes(&self, start: u64, length: usize) -> Result<bytes::Bytes, ParquetError> {
+        // A footer may claim any length: check it against the file before allocating.
+        let end = start.checked_add(length as u64).filter(|&end| end <= self.len());
+        if end.is_none() {
+            return Err(ParquetError::EOF(format!("{length} bytes at offset {start} lie beyond the end of the file")));
+        }
+        let mut buf = vec![0u8; length];
+        let mut done = 0;
+        while done < length {
+            let n = read_at(&self.0, &mut buf[done..], start + done as u64)?;
+            if n == 0 {
+                return Err(ParquetError::EOF(format!("file ended after {done} of {length} bytes at offset {start}")));
+            }
+            done += n;
+        }
+        Ok(buf.into())
+    }
+}
+
 /// `true` when `path` is a regular file that starts with the Parquet magic `PAR1`.
 pub fn is_archive(path: &Path) -> bool {
-    use std::io::Read;
     let Ok(mut f) = crate::files::open_regular(path) else { return false };
     let mut magic = [0u8; 4];
     f.read_exact(&mut magic).is_ok() && &magic == b"PAR1"
@@ -55,7 +120,7 @@ type GroupKey = Result<(String, String), String>;
 /// and the release, and goes on with the next.
 pub struct ArchiveReader {
     name: String,
-    file: SerializedFileReader<std::fs::File>,
+    file: SerializedFileReader<PositionedFile>,
     keys: Vec<GroupKey>,
     next: usize,
     locomotive: Option<String>,
@@ -74,7 +139,7 @@ impl ArchiveReader {
         let name = path.display().to_string();
         let whole = |m: String| FileError::new(&name, 0, m);
         let file = crate::files::open_regular(path)?;
-        let file = SerializedFileReader::new(file)
+        let file = SerializedFileReader::new(PositionedFile(Arc::new(file)))
             .map_err(|e| whole(format!("not a Parquet file (a fleet archive is one): {e}")))?;
         let meta = file.metadata().file_metadata();
         let version = meta.key_value_metadata().and_then(|kv| kv.iter().find(|k| k.key == VERSION_KEY));
@@ -241,7 +306,7 @@ fn check_schema(schema: &parquet::schema::types::SchemaDescriptor) -> Result<(),
 
 /// The (locomotive, release) of row group `i`: from the footer's statistics when both key
 /// columns have exact, equal minimum and maximum and no null; else read from the key columns.
-fn group_key(file: &SerializedFileReader<std::fs::File>, i: usize) -> Result<(String, String), String> {
+fn group_key(file: &SerializedFileReader<PositionedFile>, i: usize) -> Result<(String, String), String> {
     let meta = file.metadata().row_group(i);
     if meta.num_rows() <= 0 {
         return Err("no rows".to_owned());
@@ -344,7 +409,7 @@ fn constant_text(group: &dyn RowGroupReader, c: usize, rows: usize) -> Result<Op
 
 /// Reads and checks the samples and the per-release columns of row group `i`.
 fn read_release(
-    file: &SerializedFileReader<std::fs::File>,
+    file: &SerializedFileReader<PositionedFile>,
     i: usize,
     locomotive: String,
     release: String,

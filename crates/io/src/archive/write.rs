@@ -5,7 +5,7 @@ use anyhow::{bail, Context, Result};
 use parquet::basic::{Compression, Encoding, ZstdLevel};
 use parquet::data_type::{ByteArray, ByteArrayType, DoubleType, Int32Type};
 use parquet::file::metadata::KeyValue;
-use parquet::file::properties::WriterProperties;
+use parquet::file::properties::{EnabledStatistics, WriterProperties};
 use parquet::file::writer::{SerializedColumnWriter, SerializedFileWriter};
 use parquet::schema::parser::parse_message_type;
 use parquet::schema::types::ColumnPath;
@@ -40,6 +40,9 @@ fn properties() -> Result<WriterProperties> {
         .set_created_by("parking brake monitor fleet archive".into())
         .set_key_value_metadata(Some(vec![KeyValue::new(VERSION_KEY.to_owned(), VERSION.to_owned())]))
         .set_compression(Compression::ZSTD(ZstdLevel::try_new(1)?))
+        // Statistics per column chunk only: per-page statistics (the page index) would keep
+        // kilobytes per release in the writer until the footer is written, for no use here.
+        .set_statistics_enabled(EnabledStatistics::Chunk)
         .set_column_dictionary_enabled(ColumnPath::from("t_s"), false)
         .set_column_encoding(ColumnPath::from("t_s"), Encoding::BYTE_STREAM_SPLIT);
     Ok(delta(delta(props, "sample"), "adc").build())
