@@ -715,14 +715,14 @@ pub fn replay_archived(
 /// few enough that memory stays a few releases whatever the archive's size.
 pub const ARCHIVE_CHUNK: usize = 32;
 
-/// Replays the releases of the fleet archive `path` (one locomotive's only, or one split's,
-/// when `opts` asks) in the archive's order, reading [`ARCHIVE_CHUNK`] row groups at a time in
-/// parallel; returns the items (name: the release id) and their results as [`replay_all`]
-/// does. An archive that cannot be opened is an error; a bad release is its result's error.
-pub fn replay_archive(
-    path: &Path,
-    opts: &ReplayOptions,
-) -> Result<(Vec<TraceItem>, Vec<Result<TraceReplay, FileError>>)> {
+/// The replays of a run, in its order: each item's replay or why it was skipped.
+pub type Replays = Vec<Result<TraceReplay, FileError>>;
+
+/// Replays the releases of the fleet archive `path` (one split's, when `opts` asks) in the
+/// archive's order, reading [`ARCHIVE_CHUNK`] row groups at a time in parallel; returns the
+/// items (name: the release id) and their results as [`replay_all`] does. An archive that
+/// cannot be opened is an error; a bad release is its result's error.
+pub fn replay_archive(path: &Path, opts: &ReplayOptions) -> Result<(Vec<TraceItem>, Replays)> {
     let reader = ArchiveReader::open(path)?;
     let groups = reader.selected();
     let item_of = |i: usize, label: Option<String>| {
