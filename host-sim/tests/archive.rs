@@ -171,6 +171,10 @@ fn pack_unpack_replay_and_ingest_agree_with_the_data_set() {
     let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
     ok(&out);
     assert!(stderr.contains("stored 0 releases (0 new)") && stderr.contains("15 duplicates not stored"), "{stderr}");
+    assert!(
+        stderr.contains(&format!("same samples as {} [traces/", archive.canonicalize().unwrap().display())),
+        "{stderr}"
+    );
 }
 
 /// A release at 100 Hz whose samples are `adc`.
