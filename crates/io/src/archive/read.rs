@@ -83,6 +83,21 @@ impl ChunkReader for PositionedFile {
     }
 }
 
+/// Runs a call into the parquet crate, turning a panic into an error: the crate asserts on
+/// some damaged footers instead of returning an error (found by flipping bytes of an archive:
+/// `tests/archive_corrupt.rs`). The panic's message still reaches stderr through the panic
+/// hook; the run goes on.
+fn guarded<T>(f: impl FnOnce() -> Result<T, String>) -> Result<T, String> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|payload| {
+        let why = payload
+            .downcast_ref::<&str>()
+            .map(|s| (*s).to_owned())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_default();
+        Err(format!("the Parquet decoder failed on damaged data: {why}"))
+    })
+}
+
 /// `true` when `path` is a regular file that starts with the Parquet magic `PAR1`.
 pub fn is_archive(path: &Path) -> bool {
     let Ok(mut f) = crate::files::open_regular(path) else { return false };
@@ -139,8 +154,11 @@ impl ArchiveReader {
         let name = path.display().to_string();
         let whole = |m: String| FileError::new(&name, 0, m);
         let file = crate::files::open_regular(path)?;
-        let file = SerializedFileReader::new(PositionedFile(Arc::new(file)))
-            .map_err(|e| whole(format!("not a Parquet file (a fleet archive is one): {e}")))?;
+        let file = guarded(|| {
+            SerializedFileReader::new(PositionedFile(Arc::new(file)))
+                .map_err(|e| format!("not a Parquet file (a fleet archive is one): {e}"))
+        })
+        .map_err(whole)?;
         let meta = file.metadata().file_metadata();
         let version = meta.key_value_metadata().and_then(|kv| kv.iter().find(|k| k.key == VERSION_KEY));
         match version.and_then(|k| k.value.as_deref()) {
@@ -150,7 +168,7 @@ impl ArchiveReader {
         }
         check_schema(file.metadata().file_metadata().schema_descr()).map_err(whole)?;
         let mut keys: Vec<GroupKey> = (0..file.num_row_groups())
-            .map(|i| group_key(&file, i).map_err(|m| format!("row group {i}: {m}")))
+            .map(|i| guarded(|| group_key(&file, i)).map_err(|m| format!("row group {i}: {m}")))
             .collect();
         // A release found in two row groups: both are refused (which rows are the release?).
         let mut first: HashMap<(String, String), usize> = HashMap::new();
@@ -224,7 +242,15 @@ impl ArchiveReader {
             Some(Err(m)) => return Err(err(m.clone())),
             None => return Err(err(format!("no row group {i}"))),
         };
-        read_release(&self.file, i, loco, release).map_err(err)
+        let at = format!("release {release} of {loco} (row group {i})");
+        guarded(|| read_release(&self.file, i, loco, release)).map_err(|m| {
+            // `read_release` names the release itself; a caught panic does not.
+            if m.starts_with("release ") {
+                err(m)
+            } else {
+                err(format!("{at}: {m}"))
+            }
+        })
     }
 }
 
@@ -310,6 +336,14 @@ fn group_key(file: &SerializedFileReader<PositionedFile>, i: usize) -> Result<(S
     let meta = file.metadata().row_group(i);
     if meta.num_rows() <= 0 {
         return Err("no rows".to_owned());
+    }
+    // Where each column chunk lies, checked before anything reads it (the parquet crate
+    // asserts on a negative offset or length).
+    for c in meta.columns() {
+        let start = c.dictionary_page_offset().unwrap_or_else(|| c.data_page_offset());
+        if start < 0 || c.compressed_size() < 0 {
+            return Err(format!("column `{}` has a negative offset or length (damaged file)", c.column_descr().name()));
+        }
     }
     let from_stats = |c: usize| -> Option<String> {
         let s = meta.column(c).statistics()?;
