@@ -45,8 +45,12 @@ pub enum Command {
     AuditMetro(MetroArgs),
     /// Print throughput figures (twin, monitor pipeline, generate) and write bench/host.md.
     Bench(BenchArgs),
-    /// Replay a trace or a data set through the monitor pipeline (results CSV, summary, plots).
+    /// Replay a trace, a data set or a fleet archive through the monitor pipeline (results CSV,
+    /// summary, plots, results Parquet).
     Replay(ReplayArgs),
+    /// Fleet archives: many releases in one Parquet file (docs/archive.md); pack, unpack.
+    #[command(subcommand)]
+    Archive(ArchiveCommand),
     /// CAN reports: decode a candump log or interface as the cab display shows it, send, demo log.
     #[command(subcommand)]
     Can(CanCommand),
@@ -76,6 +80,16 @@ pub fn run(command: Command) -> Result<Skipped> {
         Command::AuditMetro(a) => done(pbm_lab::metro::run(&a.path.clone(), &a.into())),
         Command::Bench(a) => done(pbm_lab::bench::run(&a.into())),
         Command::Replay(a) => pbm_lab::replay::run(&a.path.clone(), &a.into()),
+        Command::Archive(ArchiveCommand::Pack(a)) => {
+            let (summary, skipped) = pbm_io::archive::pack(&a.inputs, &a.out)?;
+            eprintln!("{summary}");
+            Ok(skipped)
+        }
+        Command::Archive(ArchiveCommand::Unpack(a)) => {
+            let (summary, skipped) = pbm_io::archive::unpack(&a.archive, &a.out)?;
+            eprintln!("{summary}");
+            Ok(skipped)
+        }
         Command::Can(CanCommand::Decode(a)) => done(pbm_lab::can_cmd::decode(&a.into())),
         Command::Can(CanCommand::Send(a)) => done(pbm_lab::can_cmd::send(&a.into())),
         Command::Can(CanCommand::DemoLog(a)) => done(pbm_lab::can_cmd::demo_log(&a.into())),
@@ -379,7 +393,7 @@ impl From<BenchArgs> for BenchOptions {
 
 #[derive(Args)]
 pub struct ReplayArgs {
-    /// A trace file, or a data set directory containing manifest.csv.
+    /// A trace file, a data set directory containing manifest.csv, or a fleet archive (Parquet).
     path: PathBuf,
     /// Write one results CSV per trace (and summary.csv) into this directory.
     #[arg(long)]
@@ -396,12 +410,54 @@ pub struct ReplayArgs {
     /// Worker threads (0 = all cores).
     #[arg(long, default_value_t = 0)]
     threads: usize,
+    /// Write one row per release (the table's fields) to this Parquet file (docs/archive.md).
+    #[arg(long)]
+    results_parquet: Option<PathBuf>,
 }
 
 impl From<ReplayArgs> for ReplayOptions {
     fn from(a: ReplayArgs) -> Self {
-        Self { out: a.out, plot: a.plot, can_log: a.can_log, split: a.split, threads: a.threads, progress: true }
+        Self {
+            out: a.out,
+            plot: a.plot,
+            can_log: a.can_log,
+            split: a.split,
+            threads: a.threads,
+            progress: true,
+            results_parquet: a.results_parquet,
+        }
     }
+}
+
+// ---- archive -------------------------------------------------------------------------------
+
+/// Subcommands of `host-sim archive`.
+#[derive(Subcommand)]
+pub enum ArchiveCommand {
+    /// Pack data sets (directories with manifest.csv) and ADC trace files into one fleet
+    /// archive, one row group per release, sorted by (locomotive, release).
+    Pack(ArchivePackArgs),
+    /// Write a fleet archive back as a data set: manifest.csv and one trace CSV per release.
+    Unpack(ArchiveUnpackArgs),
+}
+
+#[derive(Args)]
+pub struct ArchivePackArgs {
+    /// Data set directories and trace files (a trace file needs `# locomotive:` metadata).
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// The archive to write.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+#[derive(Args)]
+pub struct ArchiveUnpackArgs {
+    /// The fleet archive.
+    archive: PathBuf,
+    /// The data set directory to write (must be absent or empty).
+    #[arg(long)]
+    out: PathBuf,
 }
 
 // ---- can -----------------------------------------------------------------------------------
@@ -779,7 +835,7 @@ pub struct FleetIngestArgs {
     /// The fleet database (SQLite file, created if absent).
     #[arg(long)]
     db: PathBuf,
-    /// Trace files, data set directories (with manifest.csv) and candump logs.
+    /// Trace files, data set directories (with manifest.csv), fleet archives and candump logs.
     #[arg(required = true)]
     paths: Vec<PathBuf>,
     /// Worker threads for replaying traces (0 = all cores).

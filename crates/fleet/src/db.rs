@@ -158,6 +158,16 @@ pub struct StoredRelease {
     pub numbered: bool,
 }
 
+/// Where a stored release came from, for messages: its file, and the release within the file
+/// when the file holds many (an archive's release id; a trace file's key is `0`).
+fn place(origin: &str, release_key: &str) -> String {
+    if release_key == "0" {
+        origin.to_owned()
+    } else {
+        format!("{origin} [{release_key}]")
+    }
+}
+
 impl FleetDb {
     /// Opens (creating if needed) the fleet history at `path`.
     pub fn open(path: &Path) -> Result<Self> {
@@ -249,8 +259,9 @@ impl FleetDb {
                                           since_command_s, supply_bar_g, leak_mm, completed, current, lost_before)
                  VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13)",
             )?;
-            let mut same_samples =
-                tx.prepare_cached("SELECT origin FROM releases WHERE locomotive = ?1 AND content_hash = ?2 LIMIT 1")?;
+            let mut same_samples = tx.prepare_cached(
+                "SELECT origin, release_key FROM releases WHERE locomotive = ?1 AND content_hash = ?2 LIMIT 1",
+            )?;
             let mut same_number = tx.prepare_cached(
                 "SELECT origin FROM releases WHERE locomotive = ?1 AND source = ?2 AND release_no = ?3 AND numbered = 1 LIMIT 1",
             )?;
@@ -264,7 +275,11 @@ impl FleetDb {
                 let known = exists.query_row(key, |_| Ok(())).optional()?.is_some();
                 if !known {
                     let same: Option<String> = match &r.content_hash {
-                        Some(h) => same_samples.query_row(params![r.locomotive, h], |row| row.get(0)).optional()?,
+                        Some(h) => same_samples
+                            .query_row(params![r.locomotive, h], |row| {
+                                Ok(place(&row.get::<_, String>(0)?, &row.get::<_, String>(1)?))
+                            })
+                            .optional()?,
                         None => None,
                     };
                     let why = match same {
@@ -280,7 +295,7 @@ impl FleetDb {
                         None => None,
                     };
                     if let Some(why) = why {
-                        stored.duplicates.push(format!("{}: {why}", r.origin));
+                        stored.duplicates.push(format!("{}: {why}", place(&r.origin, &r.release_key)));
                         continue;
                     }
                 }

@@ -4,6 +4,10 @@
 //!   `Pipeline` ([`pbm_lab::replay::replay_item`], the host's one replay loop); a release's
 //!   verdict is the diagnosis the pipeline closed and its estimates are the estimator's at the
 //!   end of the release. Each trace is one input file: one transaction.
+//! - A **fleet archive** ([`pbm_io::archive`]) is replayed release by release like a data
+//!   set; a release's natural key is the archive and its release id, its fingerprint that of
+//!   the trace it unpacks to, so a release stored before from its trace file is not stored
+//!   again. Each release is one transaction.
 //! - A **candump log** (`.log`, or a file whose first line is a candump line) is decoded by the
 //!   core's CAN [`Decoder`] as the cab display decodes it; the fault reports of one locomotive
 //!   and release number form one release, and the last report of it (the final diagnosis) is
@@ -21,10 +25,14 @@ use crate::record::{
 };
 use anyhow::{bail, Result};
 use pbm::can::{Decoder, Report};
+use pbm_io::archive::{is_archive, ArchiveReader, ArchivedRelease};
 use pbm_io::dataset::TraceItem;
 use pbm_io::error::{FileError, Skipped};
 use pbm_io::trace::TraceReader;
-use pbm_lab::replay::{replay_item_observing, ReplayError, ReplayOptions, ReplaySample, TimedFrame};
+use pbm_lab::replay::{
+    replay_archived_observing, replay_item_observing, ReplayError, ReplayOptions, ReplaySample, TimedFrame,
+    TraceReplay,
+};
 use rayon::prelude::*;
 use std::collections::HashMap;
 use std::io::BufRead;
@@ -120,21 +128,12 @@ pub fn trace_record(item: &TraceItem, rank: usize) -> Result<Result<ReleaseRecor
         Err(e) => return Ok(Err(e.into())),
     };
     let name = item.path.display().to_string();
-    let numbered = meta.meta("release").is_some();
-    let release_no = match meta.meta("release") {
-        Some(v) => match v.parse::<i64>() {
-            Ok(n) => n,
-            Err(_) => return Ok(Err(FileError::new(&name, 0, format!("metadata `release: {v}` is not an integer")))),
-        },
-        None => rank as i64,
+    let (release_no, time_s) = match release_meta(|k| meta.meta(k)) {
+        Ok(x) => x,
+        Err(m) => return Ok(Err(FileError::new(&name, 0, m))),
     };
-    let time_s = match meta.meta("time_s") {
-        Some(v) => match v.parse::<f64>() {
-            Ok(t) if t.is_finite() => Some(t),
-            _ => return Ok(Err(FileError::new(&name, 0, format!("metadata `time_s: {v}` is not a finite number")))),
-        },
-        None => None,
-    };
+    let numbered = release_no.is_some();
+    let release_no = release_no.unwrap_or(rank as i64);
     drop(meta);
     let content_hash = match std::fs::read(&item.path) {
         Ok(bytes) => Some(samples_hash(&String::from_utf8_lossy(&bytes))),
@@ -142,31 +141,69 @@ pub fn trace_record(item: &TraceItem, rank: usize) -> Result<Result<ReleaseRecor
     };
     // The release curve, thinned to the stored step, is kept as the samples go by; the frames
     // the controller sent are kept and decoded as the cab display would.
-    let stride = (CURVE_STEP_S / pbm::twin::SAMPLE_PERIOD_S).round().max(1.0) as usize;
-    let mut curve = ReleaseCurve { step_s: CURVE_STEP_S, ..ReleaseCurve::default() };
-    let mut index = 0usize;
-    let observe = |s: &ReplaySample| {
-        if index % stride == 0 {
-            curve.measured_bar.push(s.measured_bar() as f32);
-            curve.twin_bar.push(s.twin_bar() as f32);
-        }
-        index += 1;
-    };
-    let replay = match replay_item_observing(item, &ReplayOptions::default(), 0, true, observe) {
+    let mut curve_keeper = CurveKeeper::new();
+    let replay = match replay_item_observing(item, &ReplayOptions::default(), 0, true, |s| curve_keeper.push(s)) {
         Ok(r) => r,
         Err(ReplayError::Input(e)) => return Ok(Err(e)),
         Err(ReplayError::Output(e)) => return Err(e),
     };
-    let can_reports = decode_frames(&replay.replayed.frames);
+    let detail = curve_keeper.detail(&replay);
+    Ok(Ok(record_of(&replay, origin_of(&item.path), "0".to_owned(), release_no, time_s, content_hash, numbered, detail)))
+}
+
+/// The release curve, thinned to the stored step as the samples go by.
+struct CurveKeeper {
+    stride: usize,
+    index: usize,
+    curve: ReleaseCurve,
+}
+
+impl CurveKeeper {
+    fn new() -> Self {
+        let stride = (CURVE_STEP_S / pbm::twin::SAMPLE_PERIOD_S).round().max(1.0) as usize;
+        Self { stride, index: 0, curve: ReleaseCurve { step_s: CURVE_STEP_S, ..ReleaseCurve::default() } }
+    }
+
+    fn push(&mut self, s: &ReplaySample) {
+        if self.index % self.stride == 0 {
+            self.curve.measured_bar.push(s.measured_bar() as f32);
+            self.curve.twin_bar.push(s.twin_bar() as f32);
+        }
+        self.index += 1;
+    }
+
+    /// The stored detail of a replay: this curve and the fault reports the controller's frames
+    /// carry, decoded as the cab display would.
+    fn detail(self, replay: &TraceReplay) -> ReleaseDetail {
+        let curve = self.curve;
+        ReleaseDetail {
+            curve: (!curve.twin_bar.is_empty()).then_some(curve),
+            can_reports: decode_frames(&replay.replayed.frames),
+        }
+    }
+}
+
+/// The record of a replayed trace.
+#[allow(clippy::too_many_arguments)]
+fn record_of(
+    replay: &TraceReplay,
+    origin: String,
+    release_key: String,
+    release_no: i64,
+    time_s: Option<f64>,
+    content_hash: Option<String>,
+    numbered: bool,
+    detail: ReleaseDetail,
+) -> ReleaseRecord {
     let s = &replay.summary;
     let est = s.last.map(|l| l.estimates);
     let f = |v: Option<f32>| v.map(f64::from).filter(|x| x.is_finite());
     let label = (s.label != "-").then(|| s.label.clone());
-    Ok(Ok(ReleaseRecord {
+    ReleaseRecord {
         locomotive: s.locomotive.clone(),
         source: Source::Trace,
-        origin: origin_of(&item.path),
-        release_key: "0".to_owned(),
+        origin,
+        release_key,
         release_no,
         time_s,
         verdict: s.diagnosis.map(|d| d.verdict),
@@ -176,8 +213,104 @@ pub fn trace_record(item: &TraceItem, rank: usize) -> Result<Result<ReleaseRecor
         label,
         content_hash,
         numbered,
-        detail: ReleaseDetail { curve: (!curve.twin_bar.is_empty()).then_some(curve), can_reports },
-    }))
+        detail,
+    }
+}
+
+/// Reads the metadata `release` (an integer) and `time_s` (a finite number) of a trace.
+fn release_meta<'a>(meta: impl Fn(&str) -> Option<&'a str>) -> Result<(Option<i64>, Option<f64>), String> {
+    let release_no = match meta("release") {
+        Some(v) => Some(v.parse::<i64>().map_err(|_| format!("metadata `release: {v}` is not an integer"))?),
+        None => None,
+    };
+    let time_s = match meta("time_s") {
+        Some(v) => match v.parse::<f64>() {
+            Ok(t) if t.is_finite() => Some(t),
+            _ => return Err(format!("metadata `time_s: {v}` is not a finite number")),
+        },
+        None => None,
+    };
+    Ok((release_no, time_s))
+}
+
+/// The record of one archived release: replayed as a trace; its natural key is the archive
+/// (canonical path) and the release id, its fingerprint that of the trace CSV it unpacks to
+/// (so a release already stored from its trace file is recognised).
+fn archive_record(
+    name: &str,
+    origin: &str,
+    r: &ArchivedRelease,
+    rank: usize,
+) -> Result<Result<ReleaseRecord, FileError>> {
+    let (release_no, time_s) = match release_meta(|k| r.meta(k)) {
+        Ok(x) => x,
+        Err(m) => return Ok(Err(FileError::new(name, 0, format!("release {} of {}: {m}", r.release, r.locomotive)))),
+    };
+    let mut csv = Vec::new();
+    r.write_csv(&mut csv)?;
+    let content_hash = Some(samples_hash(&String::from_utf8_lossy(&csv)));
+    let mut curve_keeper = CurveKeeper::new();
+    let replay = match replay_archived_observing(name, r, &ReplayOptions::default(), 0, true, |s| curve_keeper.push(s))
+    {
+        Ok(t) => t,
+        Err(ReplayError::Input(e)) => return Ok(Err(e)),
+        Err(ReplayError::Output(e)) => return Err(e),
+    };
+    let numbered = release_no.is_some();
+    let release_no = release_no.unwrap_or(rank as i64);
+    let detail = curve_keeper.detail(&replay);
+    Ok(Ok(record_of(&replay, origin.to_owned(), r.release.clone(), release_no, time_s, content_hash, numbered, detail)))
+}
+
+/// Ingests the releases of the fleet archive `path`: each release is one transaction, as a
+/// trace file is; read and replayed 256 at a time in parallel (memory: one chunk of releases).
+fn ingest_archive(
+    db: &mut FleetDb,
+    path: &Path,
+    pool: &rayon::ThreadPool,
+    summary: &mut IngestSummary,
+) -> Result<usize> {
+    let reader = match ArchiveReader::open(path) {
+        Ok(r) => r,
+        Err(e) => {
+            summary.skipped.push(e);
+            return Ok(1);
+        }
+    };
+    let name = reader.name().to_owned();
+    let origin = origin_of(path);
+    let groups = reader.selected();
+    let mut seen: HashMap<String, usize> = HashMap::new();
+    for chunk in groups.chunks(256) {
+        let read: Vec<Result<ArchivedRelease, FileError>> =
+            pool.install(|| chunk.par_iter().map(|&i| reader.read(i)).collect());
+        let ranked: Vec<Result<(ArchivedRelease, usize), FileError>> = read
+            .into_iter()
+            .map(|r| {
+                r.map(|r| {
+                    let n = seen.entry(r.locomotive.clone()).or_insert(0);
+                    *n += 1;
+                    (r, *n - 1)
+                })
+            })
+            .collect();
+        let records: Vec<Result<Result<ReleaseRecord, FileError>>> = pool.install(|| {
+            ranked
+                .par_iter()
+                .map(|r| match r {
+                    Ok((r, rank)) => archive_record(&name, &origin, r, *rank),
+                    Err(e) => Ok(Err(e.clone())),
+                })
+                .collect()
+        });
+        for r in records {
+            match db.store_file([r?])? {
+                Ok(s) => summary.add(s),
+                Err(e) => summary.skipped.push(e),
+            }
+        }
+    }
+    Ok(groups.len())
 }
 
 /// The fault reports among a replayed release's frames, decoded by the core's decoder as the
@@ -308,6 +441,11 @@ pub fn ingest(db: &mut FleetDb, paths: &[impl AsRef<Path>], opts: &IngestOptions
                 Ok(s) => summary.add(s),
                 Err(e) => summary.skipped.push(e),
             }
+            continue;
+        }
+        if path.is_file() && is_archive(path) {
+            let pool = rayon::ThreadPoolBuilder::new().num_threads(opts.threads).build()?;
+            attempted += ingest_archive(db, path, &pool, &mut summary)?;
             continue;
         }
         let (items, skipped) = match pbm_lab::replay::items(path, None) {

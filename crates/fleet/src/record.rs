@@ -199,14 +199,9 @@ pub fn no_diagnosis_of(v: &Verdict) -> Option<String> {
     }
 }
 
-/// The stored verdict label of a verdict.
-pub fn verdict_label(v: Option<&Verdict>) -> String {
-    match v {
-        Some(Verdict::Class { class, .. }) => class.label().to_owned(),
-        Some(Verdict::CannotDiagnose(_)) => CANNOT_DIAGNOSE.to_owned(),
-        None => NO_VERDICT.to_owned(),
-    }
-}
+/// The stored verdict label of a verdict (the one mapping, shared with the replay's results
+/// file).
+pub use pbm_io::archive::results::verdict_label;
 
 /// The reason of a declined diagnosis from its stored text (the core's own `Display` of
 /// [`NoDiagnosis`], as [`ReleaseRecord::no_diagnosis`] stores it); `None` for an unknown text.
@@ -234,10 +229,9 @@ pub fn samples_hash(text: &str) -> String {
     format!("{h:016x}-{lines}")
 }
 
-/// Stored verdict of a release where the monitor declined to name a class.
-pub const CANNOT_DIAGNOSE: &str = "cannot_diagnose";
-/// Stored verdict of a release that closed without any diagnosis.
-pub const NO_VERDICT: &str = "none";
+/// Stored verdict of a release where the monitor declined to name a class, and of one that
+/// closed without any diagnosis.
+pub use pbm_io::archive::results::{CANNOT_DIAGNOSE, NO_VERDICT};
 
 /// Supply and leak as a CAN fault report carries them (0 means "not estimated yet" for the
 /// supply, "tight or not estimated" for the leak: [`FaultReport`]).

@@ -1,7 +1,9 @@
 //! Replay: recorded traces fed, one sample at a time, through the very same per-sample path the
 //! firmware runs ([`Pipeline::step`]: monitor, diagnosis policy, CAN schedule; ADC counts in).
 //!
-//! The input is a trace file or a data set directory (with `manifest.csv`). Every sample is
+//! The input is a trace file, a data set directory (with `manifest.csv`) or a fleet archive
+//! ([`pbm_io::archive`]; its releases in the archive's order, as the data set with its manifest
+//! in (locomotive, release) order would replay them: the same table, outputs and CAN log). Every sample is
 //! taken as part of one release (`valve_open = true`), starting at the release command as SPEC
 //! §5 says a trace does. `p_bar` traces are first turned into ADC counts with the sensor map
 //! ([`adc_from_bar`], no noise added). Traces must be sampled at 100 Hz (±1 ms per interval):
@@ -22,16 +24,18 @@ use pbm::can::{CanFrame, Identity};
 use pbm::metrics::Nmse;
 use pbm::monitor::MonitorStep;
 use pbm::pipeline::Pipeline;
-use pbm::report::FaultReport;
+use pbm::report::{FaultReport, Verdict};
 use pbm::sensor::adc_from_bar;
 use pbm::twin::SAMPLE_PERIOD_S;
 use pbm::{AdcCounts, BarG, PressureQ24};
+use pbm_io::archive::results::{verdict_label, write_results, ResultRow};
+use pbm_io::archive::{is_archive, ArchiveReader, ArchivedRelease};
 use pbm_io::can_bus::FrameSink;
 use pbm_io::can_log::{CandumpWriter, DEFAULT_IFACE};
 use pbm_io::dataset::{select, Selection, TraceItem};
 use pbm_io::error::{FileError, Skipped};
 use pbm_io::table::CsvFile;
-use pbm_io::trace::{Samples, Trace, TraceReader, Value};
+use pbm_io::trace::{Samples, Trace, TraceErrorKind, TraceReader, Value};
 use pbm_report::plot::{write_replay_svg, ReplayPlot};
 use rayon::prelude::*;
 use std::collections::VecDeque;
@@ -53,6 +57,9 @@ pub struct ReplayOptions {
     pub threads: usize,
     /// Show a progress bar (stderr) when there is more than one trace.
     pub progress: bool,
+    /// Write one row per release (the table's fields) to this Parquet file
+    /// ([`pbm_io::archive::results`]).
+    pub results_parquet: Option<PathBuf>,
 }
 
 /// Columns of the per-trace results CSV.
@@ -433,14 +440,32 @@ pub fn replay_item_observing(
     opts: &ReplayOptions,
     earlier_releases: u8,
     keep_frames: bool,
-    mut observe: impl FnMut(&ReplaySample),
+    observe: impl FnMut(&ReplaySample),
 ) -> Result<TraceReplay, ReplayError> {
     let mut reader = TraceReader::open(&item.path).map_err(FileError::from)?;
     let label = item.label.clone().or_else(|| reader.meta("label").map(str::to_owned)).unwrap_or_else(|| "-".into());
     let locomotive =
         item.locomotive.clone().or_else(|| reader.meta("locomotive").map(str::to_owned)).unwrap_or_else(|| "-".into());
-    let identity = release_identity(&locomotive, earlier_releases);
-    let results_path = opts.out.as_deref().map(|d| output_path(d, &item.name, "csv"));
+    replay_release(&item.name, &label, &locomotive, stream(&mut reader), opts, earlier_releases, keep_frames, observe)
+}
+
+/// Replays one release's `(t_s, adc)` samples under the output name `name` and writes its
+/// outputs (results CSV, plot); a bad input removes what was written of them. The one body of
+/// [`replay_item_observing`] (a trace file) and of the archive replay (a row group). Keeps the
+/// frames sent when `keep_frames` and shows every replayed sample to `observe`.
+#[allow(clippy::too_many_arguments)]
+fn replay_release(
+    name: &str,
+    label: &str,
+    locomotive: &str,
+    samples: impl Iterator<Item = Result<(f64, u16), FileError>>,
+    opts: &ReplayOptions,
+    earlier_releases: u8,
+    keep_frames: bool,
+    mut observe: impl FnMut(&ReplaySample),
+) -> Result<TraceReplay, ReplayError> {
+    let identity = release_identity(locomotive, earlier_releases);
+    let results_path = opts.out.as_deref().map(|d| output_path(d, name, "csv"));
     let mut results = match &results_path {
         Some(p) => {
             let mut f = CsvFile::create(p).map_err(ReplayError::Output)?;
@@ -451,7 +476,7 @@ pub fn replay_item_observing(
     };
     let mut series: Option<PlotSeries> = opts.plot.as_ref().map(|_| PlotSeries::default());
     let mut summariser = Summariser::default();
-    let run = replay_samples(stream(&mut reader), keep_frames, identity, |s| {
+    let run = replay_samples(samples, keep_frames, identity, |s| {
         observe(s);
         summariser.push(s);
         if let Some(f) = results.as_mut() {
@@ -475,11 +500,11 @@ pub fn replay_item_observing(
     if let Some(f) = results {
         f.finish().map_err(ReplayError::Output)?;
     }
-    let summary = summariser.finish(&item.name, &label, &locomotive, replayed.diagnosis);
+    let summary = summariser.finish(name, label, locomotive, replayed.diagnosis);
     if let (Some(dir), Some(PlotSeries { columns: [t, m, tw, r], .. })) = (&opts.plot, &series) {
-        let path = output_path(dir, &item.name, "svg");
+        let path = output_path(dir, name, "svg");
         let nmse = summary.nmse_pct.map_or_else(|| "n/a".to_owned(), |v| format!("{v:.2} %"));
-        let title = format!("{} ({label}, {locomotive}), NMSE {nmse}", item.name);
+        let title = format!("{name} ({label}, {locomotive}), NMSE {nmse}");
         let plot = ReplayPlot { title: &title, t_s: t, measured_bar: m, twin_bar: tw, residual_bar: r };
         if let Some(p) = path.parent() {
             std::fs::create_dir_all(p)
@@ -489,6 +514,23 @@ pub fn replay_item_observing(
         write_replay_svg(&path, &plot).map_err(ReplayError::Output)?;
     }
     Ok(TraceReplay { summary, replayed })
+}
+
+/// Each locomotive's monitor numbers its releases on: the k-th trace of a locomotive (in the
+/// data set's or archive's order) is its release k, so every report in a replay's CAN log
+/// belongs to one locomotive and one release.
+#[derive(Debug, Default)]
+struct ReleaseNumbering(std::collections::HashMap<u8, u8>);
+
+impl ReleaseNumbering {
+    /// The releases the locomotive's monitor has seen before this one.
+    fn next(&mut self, locomotive: Option<&str>) -> u8 {
+        let loco = locomotive.map_or(0, pbm::can::codec::locomotive_number);
+        let n = self.0.entry(loco).or_insert(0);
+        let before = *n;
+        *n = n.wrapping_add(1);
+        before
+    }
 }
 
 /// Replays every item in parallel; results in input order, a bad input as its [`FileError`].
@@ -504,20 +546,8 @@ pub fn replay_all(items: &[TraceItem], opts: &ReplayOptions) -> Result<Vec<Resul
     // No more threads than traces (0 = one per core).
     let threads = if opts.threads == 0 { 0 } else { opts.threads.min(items.len().max(1)) };
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start worker threads")?;
-    // Each locomotive's monitor numbers its releases on: the k-th trace of a locomotive (in
-    // the data set's order) is its release k, so every report in a data set's CAN log belongs
-    // to one locomotive and one release.
-    let mut per_loco: std::collections::HashMap<u8, u8> = std::collections::HashMap::new();
-    let earlier: Vec<u8> = items
-        .iter()
-        .map(|item| {
-            let loco = item.locomotive.as_deref().map_or(0, pbm::can::codec::locomotive_number);
-            let n = per_loco.entry(loco).or_insert(0);
-            let before = *n;
-            *n = n.wrapping_add(1);
-            before
-        })
-        .collect();
+    let mut numbering = ReleaseNumbering::default();
+    let earlier: Vec<u8> = items.iter().map(|item| numbering.next(item.locomotive.as_deref())).collect();
     let results: Vec<Result<Result<TraceReplay, FileError>>> = pool.install(|| {
         items
             .par_iter()
@@ -670,6 +700,7 @@ fn guard_inputs(path: &Path, items: &[TraceItem], opts: &ReplayOptions) -> Resul
     }
     outputs.extend(opts.out.as_deref().map(|d| d.join("summary.csv")));
     outputs.extend(opts.can_log.clone());
+    outputs.extend(opts.results_parquet.clone());
     let mut inputs: Vec<PathBuf> = items.iter().map(|i| i.path.clone()).collect();
     if path.is_dir() {
         inputs.extend([path.join(pbm_io::dataset::MANIFEST), path.join(pbm_io::dataset::TRUTH)]);
@@ -678,23 +709,215 @@ fn guard_inputs(path: &Path, items: &[TraceItem], opts: &ReplayOptions) -> Resul
         .map_err(anyhow::Error::msg)
 }
 
-/// A replay run: every trace under `path`, the table on stdout, the outputs of `opts`. Returns
-/// what was skipped (bad inputs); fails only when nothing could be replayed or an output could
-/// not be written.
-pub fn run(path: &Path, opts: &ReplayOptions) -> Result<Skipped> {
-    let (items, mut skipped) = items(path, opts.split.as_deref())?;
-    if items.is_empty() {
-        bail!(
-            "no traces to replay in {}{}",
-            path.display(),
-            if skipped.is_empty() { String::new() } else { format!("\n{skipped}") }
-        );
+/// The samples of an archived release, checked at 100 Hz; an error names the archive and the
+/// release.
+fn archive_samples<'a>(
+    archive: &'a str,
+    r: &'a ArchivedRelease,
+) -> impl Iterator<Item = Result<(f64, u16), FileError>> + 'a {
+    let mut previous: Option<f64> = None;
+    r.t_s.iter().zip(&r.adc).enumerate().map(move |(k, (&t, &c))| {
+        if let Some(p) = previous {
+            let found_s = t - p;
+            if (found_s - SAMPLE_PERIOD_S).abs() > PERIOD_TOLERANCE_S {
+                let kind = TraceErrorKind::SamplePeriod { expected_s: SAMPLE_PERIOD_S, found_s };
+                return Err(FileError::new(
+                    archive,
+                    0,
+                    format!("release {} of {}: sample {k}: {kind}", r.release, r.locomotive),
+                ));
+            }
+        }
+        previous = Some(t);
+        Ok((t, c))
+    })
+}
+
+/// Replays one release read from the archive `archive` (as named in errors), as
+/// [`replay_item_after`] replays a trace file: label `-` when the archive has none.
+pub fn replay_archived(
+    archive: &str,
+    r: &ArchivedRelease,
+    opts: &ReplayOptions,
+    earlier_releases: u8,
+) -> Result<TraceReplay, ReplayError> {
+    replay_archived_observing(archive, r, opts, earlier_releases, opts.can_log.is_some(), |_| {})
+}
+
+/// [`replay_archived`] that also keeps the frames sent when `keep_frames` and shows every
+/// replayed sample to `observe` (as [`replay_item_observing`] does for a trace file).
+pub fn replay_archived_observing(
+    archive: &str,
+    r: &ArchivedRelease,
+    opts: &ReplayOptions,
+    earlier_releases: u8,
+    keep_frames: bool,
+    observe: impl FnMut(&ReplaySample),
+) -> Result<TraceReplay, ReplayError> {
+    let label = r.label.as_deref().unwrap_or("-");
+    replay_release(
+        &r.release,
+        label,
+        &r.locomotive,
+        archive_samples(archive, r),
+        opts,
+        earlier_releases,
+        keep_frames,
+        observe,
+    )
+}
+
+/// Releases of an archive read (and then replayed) together: enough to keep the cores busy,
+/// few enough that memory stays a few releases whatever the archive's size.
+pub const ARCHIVE_CHUNK: usize = 32;
+
+/// The replays of a run, in its order: each item's replay or why it was skipped.
+pub type Replays = Vec<Result<TraceReplay, FileError>>;
+
+/// Replays the releases of the fleet archive `path` (one split's, when `opts` asks) in the
+/// archive's order, reading [`ARCHIVE_CHUNK`] row groups at a time in parallel; returns the
+/// items (name: the release id) and their results as [`replay_all`] does. An archive that
+/// cannot be opened is an error; a bad release is its result's error.
+pub fn replay_archive(path: &Path, opts: &ReplayOptions) -> Result<(Vec<TraceItem>, Replays)> {
+    let reader = ArchiveReader::open(path)?;
+    let groups = reader.selected();
+    let item_of = |i: usize, label: Option<String>| {
+        let (name, locomotive) = match reader.key(i) {
+            Some(Ok((loco, release))) => (release.to_owned(), Some(loco.to_owned())),
+            _ => (format!("row group {i}"), None),
+        };
+        TraceItem { path: path.to_owned(), name, label, locomotive }
+    };
+    let all: Vec<TraceItem> = groups.iter().map(|&i| item_of(i, None)).collect();
+    if all.is_empty() {
+        bail!("no releases to replay in {}", path.display());
     }
-    guard_inputs(path, &items, opts)?;
-    let results = replay_all(&items, opts)?;
+    guard_inputs(path, &all, opts)?;
+    let bar =
+        if opts.progress && groups.len() > 1 { ProgressBar::new(groups.len() as u64) } else { ProgressBar::hidden() };
+    bar.set_style(
+        ProgressStyle::with_template("replay [{bar:40}] {pos}/{len} releases {elapsed_precise} (eta {eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let threads = if opts.threads == 0 { 0 } else { opts.threads.min(groups.len()) };
+    let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start worker threads")?;
+    let name = reader.name().to_owned();
+    let mut numbering = ReleaseNumbering::default();
+    let (mut items, mut results) = (Vec::new(), Vec::new());
+    for chunk in groups.chunks(ARCHIVE_CHUNK) {
+        let read: Vec<Result<ArchivedRelease, FileError>> =
+            pool.install(|| chunk.par_iter().map(|&i| reader.read(i)).collect());
+        let mut jobs = Vec::with_capacity(chunk.len());
+        for (&i, r) in chunk.iter().zip(read) {
+            match r {
+                Ok(r) if opts.split.as_deref().is_some_and(|s| r.split.as_deref() != Some(s)) => {}
+                Ok(r) => {
+                    let before = numbering.next(Some(&r.locomotive));
+                    jobs.push((i, Ok((r, before))));
+                }
+                Err(e) => {
+                    numbering.next(item_of(i, None).locomotive.as_deref());
+                    jobs.push((i, Err(e)));
+                }
+            }
+        }
+        let replayed: Vec<Result<Result<TraceReplay, FileError>>> = pool.install(|| {
+            jobs.par_iter()
+                .map(|(_, job)| match job {
+                    Ok((r, before)) => match replay_archived(&name, r, opts, *before) {
+                        Ok(t) => Ok(Ok(t)),
+                        Err(ReplayError::Input(e)) => Ok(Err(e)),
+                        Err(ReplayError::Output(e)) => Err(e),
+                    },
+                    Err(e) => Ok(Err(e.clone())),
+                })
+                .collect()
+        });
+        for ((i, job), result) in jobs.into_iter().zip(replayed) {
+            let label = job.ok().map(|(r, _)| r.label.unwrap_or_else(|| "-".to_owned()));
+            items.push(item_of(i, label));
+            results.push(result?);
+        }
+        bar.inc(chunk.len() as u64);
+    }
+    bar.finish_and_clear();
+    Ok((items, results))
+}
+
+/// The results-Parquet row of each item ([`pbm_io::archive::results`]).
+pub fn result_rows(items: &[TraceItem], results: &[Result<TraceReplay, FileError>]) -> Vec<ResultRow> {
+    items
+        .iter()
+        .zip(results)
+        .map(|(item, r)| match r {
+            Ok(t) => {
+                let s = &t.summary;
+                let e = s.last.map(|l| l.estimates);
+                let f = |v: Option<f32>| v.map(f64::from);
+                let verdict = s.diagnosis.map(|d| d.verdict);
+                ResultRow {
+                    locomotive: (s.locomotive != "-").then(|| s.locomotive.clone()),
+                    release: s.file.clone(),
+                    label: (s.label != "-").then(|| s.label.clone()),
+                    samples: i64::try_from(s.samples).ok(),
+                    nmse_pct: s.nmse_pct,
+                    max_abs_residual_bar: Some(s.max_abs_residual_bar),
+                    sensor_fault_samples: i64::try_from(s.sensor_faults).ok(),
+                    final_bar_g: s.final_bar,
+                    est_orifice_mm: f(e.and_then(|e| e.orifice_mm)),
+                    est_leak_mm: f(e.and_then(|e| e.leak_mm)),
+                    est_supply_bar_g: f(e.and_then(|e| e.supply_bar_g)),
+                    verdict: Some(verdict_label(verdict.as_ref())),
+                    confidence_pct: match verdict {
+                        Some(Verdict::Class { confidence_pct, .. }) => Some(i32::from(confidence_pct)),
+                        _ => None,
+                    },
+                    no_diagnosis: match verdict {
+                        Some(Verdict::CannotDiagnose(why)) => Some(why.to_string()),
+                        _ => None,
+                    },
+                    diagnosis: Some(diagnosis(s)),
+                    error: None,
+                }
+            }
+            Err(e) => ResultRow {
+                locomotive: item.locomotive.clone(),
+                release: item.name.clone(),
+                label: item.label.clone().filter(|l| l != "-"),
+                error: Some(e.to_string()),
+                ..ResultRow::default()
+            },
+        })
+        .collect()
+}
+
+/// A replay run: every trace under `path` (a trace, a data set or a fleet archive), the table
+/// on stdout, the outputs of `opts`. Returns what was skipped (bad inputs); fails only when
+/// nothing could be replayed or an output could not be written.
+pub fn run(path: &Path, opts: &ReplayOptions) -> Result<Skipped> {
+    let (items, results, mut skipped) = if path.is_file() && is_archive(path) {
+        let (items, results) = replay_archive(path, opts)?;
+        (items, results, Skipped::none())
+    } else {
+        let (items, skipped) = items(path, opts.split.as_deref())?;
+        if items.is_empty() {
+            bail!(
+                "no traces to replay in {}{}",
+                path.display(),
+                if skipped.is_empty() { String::new() } else { format!("\n{skipped}") }
+            );
+        }
+        guard_inputs(path, &items, opts)?;
+        let results = replay_all(&items, opts)?;
+        (items, results, skipped)
+    };
     print_table(&items, &results);
     if let Some(dir) = &opts.out {
         write_summary_csv(&dir.join("summary.csv"), &items, &results)?;
+    }
+    if let Some(file) = &opts.results_parquet {
+        write_results(file, &result_rows(&items, &results))?;
     }
     if let Some(log) = &opts.can_log {
         let frames = write_can_log(log, results.iter().filter_map(|r| r.as_ref().ok()).map(|t| &t.replayed))?;
