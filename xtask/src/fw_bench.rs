@@ -363,7 +363,7 @@ model's step (`Twin::pressure_step`, one copy for every mechanism, the wall heat
 too), with the valve line's second path and the laminar leak passed in as one extra increment;
 the 64-bit product for a valve path's share (the nominal brake's flows fit 64 bits; 128 on the
 host); zero vents skipped; terms whose feature is off compiled out (the progressive spring's
-term too: ≈ 100 B in every other image); the orifice flow out of line in these images (≈ 250 B
+term too: 132 B in every other image and the nominal one); the orifice flow out of line in these images (≈ 250 B
 each use) and the twin copied from flash. All exact: the same bits as the host.
 
 The two that did not fit (issue 19 item 4; the host twin's bits changed with them, the
@@ -542,7 +542,7 @@ coinciding with twin substeps while the nominal twin's piston moves.
 
 What was cut (2026-11-23, from 48008 B, nothing the monitor does removed):
 
-- the twin's optional mechanisms (`pbm::mechanism`, ≈ 4.4 KiB then, ≈ 7.8 KiB today with all
+- the twin's optional mechanisms (`pbm::mechanism`, ≈ 4.4 KiB then, ≈ 4.0 KiB today with all
   ten: "Extended twin images" below): the core's cargo feature `extensions` (default, host
   tools) is off in the firmware, which runs only the nominal twin; `Twin::update` then never
   takes the extended path and `TwinCoeffs::new` rejects parameters that use a mechanism (an
