@@ -1231,7 +1231,7 @@ pub fn isqrt(x: Q<i64, 24>) -> Q<i64, 24> {
 
 /// Progressive spring term K β x² / L, N (0 when the spring is linear). Compiled out without
 /// the mechanism's feature (its coefficient is then zero): the nominal image and the other
-/// mechanisms' images carry neither copy (≈ 100 B each).
+/// mechanisms' images carry neither inlined copy (132 B of flash).
 #[inline]
 fn spring_quad(k: &TwinCoeffs, x: MetersQ32) -> Q<i64, 12> {
     if !ProgressiveSpring.compiled() || k.ext.spring_quad == Q::ZERO {
