@@ -48,8 +48,17 @@
 //! The valve line ([`ValveLine`], [`LineCoeffs`]), the transducer ([`SensorCoeffs`]), the vents
 //! ([`vent_increments`]) and the chamber's pressure/temperature step ([`chamber_substep`])
 //! are public pieces: [`crate::reservoir`] assembles its compressor-fed reservoir from them.
+//!
+//! The brake twin's own heat transfer carries the gas content (its mass) with the pressure
+//! rather than θ = T/T_wall ([`ExtState::gas`]): the mass is summed exactly and θ = p/p_w follows
+//! from the two, so a substep that fills the chamber needs no division at all, and one that
+//! vents needs two 32-bit ones (`gas_temperature`). It fits a firmware image (32 KiB, 5000
+//! instructions a sample); `chamber_substep`, with four 64-bit divisions and a 64-bit square
+//! root a substep, is the reservoir model's, which no firmware image carries. Its regulator
+//! droop solves for the drooped supply by one Newton step a substep from the last substep's
+//! root ([`ExtState::drooped`]), with the flow table's own slope.
 
-use crate::fixed::{sat_i64, Q};
+use crate::fixed::Q;
 use crate::mechanism::{Extensions, Mechanism, Mechanism::*};
 use crate::params::{choked_orifice_gain, circle_area, ParamError, TwinParams, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
 use crate::units::{Meters, MetersQ32, PressureQ24};
@@ -128,7 +137,7 @@ pub struct TwinCoeffs {
 /// | `heat_rate` | Q30 | h/τ of the gas-to-wall heat transfer (0 = off) |
 /// | `sqrt_theta_s`, `inv_sqrt_theta_s` | Q24 | sqrt(T_supply/T_wall) and its inverse |
 /// | `sensor` | see [`SensorCoeffs`] | transducer lag, offset and gain |
-/// | `droop`, `droop_ref` | Q24 bar, Q40 bar/substep | supply sag and the nominal orifice's choked increment |
+/// | `droop_gain` | Q30 | regulator droop: supply sag per bar of `u · φ(p/u)` through the orifice, `D/Ps · A/A_nom` |
 /// | `spring_quad` | Q4 | K β / L, N/m² |
 /// | `laminar` | Q40 | pressure increment per substep per bar g at V0 |
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -139,8 +148,7 @@ pub struct ExtCoeffs {
     sqrt_theta_s: Q<i64, 24>,
     inv_sqrt_theta_s: Q<i64, 24>,
     sensor: SensorCoeffs,
-    droop: Q<i64, 24>,
-    droop_ref: Q<i64, 40>,
+    droop_gain: Q<i64, 30>,
     spring_quad: Q<i64, 4>,
     laminar: Q<i64, 40>,
 }
@@ -154,8 +162,7 @@ impl ExtCoeffs {
         sqrt_theta_s: Q::ZERO,
         inv_sqrt_theta_s: Q::ZERO,
         sensor: SensorCoeffs::IDEAL,
-        droop: Q::ZERO,
-        droop_ref: Q::ZERO,
+        droop_gain: Q::ZERO,
         spring_quad: Q::ZERO,
         laminar: Q::ZERO,
     };
@@ -414,18 +421,20 @@ impl TwinCoeffs {
             step: Q::from_f64(h),
             stroke: MetersQ32::from_m(p.stroke),
             held_steps,
-            ext: if e.is_none() { ExtCoeffs::default() } else { Self::ext_coeffs(p, theta_s, c_in) },
+            ext: if e.is_none() { ExtCoeffs::default() } else { Self::ext_coeffs(p, theta_s) },
         })
     }
 
-    fn ext_coeffs(p: &TwinParams, theta_s: f64, c_in: f64) -> ExtCoeffs {
+    fn ext_coeffs(p: &TwinParams, theta_s: f64) -> ExtCoeffs {
         let e: &Extensions = &p.ext;
         let h = SUBSTEP_S;
         let thermal = e[HeatTransfer] > 0.0;
-        // Nominal orifice's choked increment on the same basis as `c_in` (same Cf, V0, gas).
-        let nominal_gain = c_in * circle_area(Meters::from_mm(TwinParams::NOMINAL_ORIFICE_MM)) / circle_area(p.orifice);
-        let nominal_gain = if p.orifice.0 > 0.0 { nominal_gain } else { 0.0 };
-        let droop_ref = p.supply.to_abs_bar() * nominal_gain;
+        // Regulator droop: the supply sags by D · m/m_ref, m_ref the nominal orifice's choked flow
+        // from the supply (same Cf, V0 and gas). With m = c · u · φ(p/u) for the orifice's gain
+        // c = c_nom · A/A_nom, the sag is K · u · φ(p/u) with K = D/Ps · A/A_nom (the constant
+        // part once here, not a 128-bit quotient per solver step).
+        let droop_gain = e[RegulatorDroop] / p.supply.to_abs_bar() * circle_area(p.orifice)
+            / circle_area(Meters::from_mm(TwinParams::NOMINAL_ORIFICE_MM));
         // Laminar leak: m = q (p − P0)/7 bar; increment kRT h/V0 · m, in bar per bar g.
         let gas_t = if thermal { TEMPERATURE_K } else { e[GasTemperature] };
         let laminar = laminar_gain(e[LaminarLeak], gas_t, p.dead_volume_m3, h);
@@ -433,14 +442,13 @@ impl TwinCoeffs {
             active: true,
             line: LineCoeffs::new(e[TransportDelay], e[ValveLag], h),
             // A time constant shorter than the substep is the isothermal limit: h/τ = 1 takes
-            // θ to the wall temperature in one substep. Above 1 the explicit step overshoots
-            // (θ oscillates about 1) and from h/τ ≈ 6 its products overflow; τ ≥ h unchanged.
+            // the gas to the wall temperature in one substep. Above 1 the explicit step
+            // overshoots (the temperature oscillates about the wall's); τ ≥ h unchanged.
             heat_rate: heat_rate(e[HeatTransfer], h).min(Q::ONE),
             sqrt_theta_s: Q::from_f64(libm::sqrt(theta_s)),
             inv_sqrt_theta_s: Q::from_f64(1.0 / libm::sqrt(theta_s)),
             sensor: SensorCoeffs::new(e[SensorLag], e[SensorOffset], e[SensorGain], h),
-            droop: if droop_ref > 0.0 { Q::from_f64(e[RegulatorDroop]) } else { Q::ZERO },
-            droop_ref: Q::from_f64(droop_ref).max(Q(1)),
+            droop_gain: Q::from_f64(droop_gain),
             spring_quad: Q::from_f64(p.spring_rate_n_per_m * e[ProgressiveSpring] / p.stroke.0),
             laminar: Q::from_f64(laminar),
         }
@@ -491,8 +499,7 @@ impl TwinCoeffs {
             s.ramp.0,
             s.offset.0,
             s.gain.0,
-            e.droop.0,
-            e.droop_ref.0,
+            e.droop_gain.0,
             e.spring_quad.0,
             e.laminar.0,
         ]
@@ -529,17 +536,16 @@ impl TwinCoeffs {
                 sqrt_theta_s: Q(r[23]),
                 inv_sqrt_theta_s: Q(r[24]),
                 sensor: SensorCoeffs { keep: Q(r[25]), ramp: Q(r[26]), offset: Q(r[27]), gain: Q(r[28]) },
-                droop: Q(r[29]),
-                droop_ref: Q(r[30]),
-                spring_quad: Q(r[31]),
-                laminar: Q(r[32]),
+                droop_gain: Q(r[29]),
+                spring_quad: Q(r[30]),
+                laminar: Q(r[31]),
             },
         }
     }
 }
 
 /// Integers in [`TwinCoeffs::to_raw`].
-pub const RAW_COEFFS: usize = 33;
+pub const RAW_COEFFS: usize = 32;
 
 /// State of the twin: chamber pressure, piston travel and velocity, LuGre bristle deflection.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -564,15 +570,34 @@ impl TwinState {
 pub struct ExtState {
     /// The valve path (transport delay, valve lag).
     pub line: ValveLine,
-    /// Gas temperature over wall temperature.
-    pub theta: Q<i64, 24>,
+    /// With heat transfer, the gas in the chamber: κ m R T_wall / V0, κ times the pressure it
+    /// would have at the wall temperature in the dead volume V0 (bar). The gas temperature is a
+    /// state, carried as this mass with the pressure: T/T_wall = p/p_w, p_w = (5/7) · this ·
+    /// V0/V the pressure the gas would have at the wall temperature.
+    pub gas: Q<i64, 40>,
     /// Transducer state (lagged chamber pressure), bar abs.
     pub sensed: Q<i64, 24>,
+    /// With regulator droop, the drooped supply pressure of the last substep that drew from the
+    /// supply: the next substep's solve starts from it.
+    pub drooped: PressureQ24,
 }
 
+/// 5/7 = 1/κ in Q30.
+const INV_KAPPA: Q<i64, 30> = Q(766_958_446);
+
 impl ExtState {
-    /// Valve closed for long, gas at wall temperature, transducer settled at atmosphere.
-    pub const APPLIED: Self = Self { line: ValveLine::CLOSED, theta: Q::ONE, sensed: ATMOSPHERE };
+    /// Valve closed for long, gas at wall temperature (1 bar at V0, κ · 1 bar rounded up so
+    /// that its pressure at the wall temperature is exactly 1 bar), transducer settled at atmosphere, the
+    /// first droop solve starting from the undrooped supply (any value above it).
+    pub const APPLIED: Self =
+        Self { line: ValveLine::CLOSED, gas: Q(((7 << 40) + 4) / 5), sensed: ATMOSPHERE, drooped: P_MAX };
+
+    /// The pressure p · T_wall/T the gas would have at the wall temperature in the volume
+    /// V0/`inv_vol` (the pressure step's), bar abs.
+    fn wall_pressure(&self, inv_vol: Q<i64, 16>) -> Q<i64, 24> {
+        let content: Q<i64, 24> = self.gas.rescale::<24>().mul_floor(inv_vol);
+        content.mul_round(INV_KAPPA)
+    }
 }
 
 /// What the twin reports after each sample.
@@ -642,12 +667,12 @@ impl Twin {
             let steps = k.held_steps;
             let mult = i64::from(SUBSTEPS / steps);
             for _ in 0..steps {
-                self.pressure_step(upstream, Q::ZERO, mult, Q::ONE, Q::ZERO);
+                self.pressure_step(upstream, Q::ZERO, mult, Q::ONE, Q::ZERO, Q::ZERO);
             }
         } else {
             for _ in 0..SUBSTEPS {
                 let dx = self.piston_substep();
-                self.pressure_step(upstream, dx, 1, Q::ONE, Q::ZERO);
+                self.pressure_step(upstream, dx, 1, Q::ONE, Q::ZERO, Q::ZERO);
             }
         }
         TwinSample { pressure: self.state.p, travel: self.state.x }
@@ -756,8 +781,10 @@ impl Twin {
 
     /// Pressure step of `mult` substeps with piston travel increment `dx`. The extended path's
     /// terms (one substep; compiled out without a mechanism that has them, so the base model's
-    /// code is unchanged): `share` of the substep the valve path is open for (valve line), and
-    /// `extra`, a net increment taken off (laminar leak, the other valve path's flow).
+    /// code is unchanged): `share` of the substep the valve path is open for (valve line),
+    /// `extra`, a net increment taken off (laminar leak, the other valve path's flow), and
+    /// with heat transfer `extra_mass`, its mass-weighted counterpart, the flows weighted by
+    /// their temperature, the wall heat and the gas content ([`ExtState::gas`]).
     fn pressure_step(
         &mut self,
         upstream: PressureQ24,
@@ -765,6 +792,7 @@ impl Twin {
         mult: i64,
         share: Q<i64, 30>,
         extra: Q<i64, 40>,
+        extra_mass: Q<i64, 40>,
     ) {
         let k = &self.coeffs;
         let s = &mut self.state;
@@ -778,13 +806,45 @@ impl Twin {
         if line && share != Q::ONE {
             inflow = share_mul_floor(inflow, share);
         }
-        let leak = orifice_dp(p, PressureQ24::ATMOSPHERE, k.c_leak);
+        let mut leak = orifice_dp(p, PressureQ24::ATMOSPHERE, k.c_leak);
         let work = compression_work(p, dx, k.kappa_area_per_v0);
+        let e = &k.ext;
+        let mut wall_heat = Q::<i64, 24>::ZERO;
+        if HeatTransfer.compiled() && e.heat_rate != Q::ZERO {
+            // The flows energy-weighted (the pressure increment) and mass-weighted: inflow at
+            // the supply temperature, the outflow (reverse flow and the leak) at the gas
+            // temperature (θ only then: not while the chamber fills).
+            let wall_p = self.ext.wall_pressure(inv_vol);
+            let outflow = leak - inflow.min(Q::ZERO);
+            inflow = inflow.max(Q::ZERO);
+            let (mut energy_in, mut mass_in) = (inflow, inflow);
+            if GasTemperature.compiled() {
+                energy_in = inflow.mul_floor(e.sqrt_theta_s);
+                mass_in = inflow.mul_floor(e.inv_sqrt_theta_s);
+            }
+            let (mut energy_out, mut mass_out) = (Q::ZERO, Q::ZERO);
+            if outflow != Q::ZERO {
+                let gas = gas_temperature(p, wall_p);
+                energy_out = outflow.mul_floor(gas.sqrt_theta);
+                mass_out = outflow.mul_floor(gas.inv_sqrt_theta);
+            }
+            // The gas content takes the net mass (κ m R T_wall/V0 is what the mass-weighted
+            // increments add up to: exact, no rounding); the temperature follows from p and it.
+            let mut mass = mass_in - mass_out;
+            if line || LaminarLeak.compiled() {
+                mass -= extra_mass;
+            }
+            self.ext.gas += mass;
+            (inflow, leak) = (energy_in, energy_out);
+            // Wall heat: (κ−1) Q / V = p (T_wall − T) / (T τ) = (p_w − p)/τ.
+            wall_heat = (wall_p - p.q()).mul_floor(e.heat_rate);
+        }
         let mut sum = (inflow - leak) * mult - work;
+        // (Only the valve line's second path and the laminar leak make `extra` non-zero.)
         if line || LaminarLeak.compiled() {
             sum -= extra;
         }
-        let dp: Q<i64, 24> = sum.mul_round(inv_vol);
+        let dp: Q<i64, 24> = sum.mul_round(inv_vol) + wall_heat;
         s.p = PressureQ24::from_q(p.q() + dp).clamp(PressureQ24(0), P_MAX);
     }
 }
@@ -896,7 +956,6 @@ impl Twin {
     /// shortcuts below are exact in the same way; the host (all mechanisms) takes them too.
     fn pressure_substep_ext(&mut self, e: &ExtCoeffs, dx: Q<i64, 32>) {
         let k = self.coeffs;
-        let up = |open: bool| if open { k.supply } else { PressureQ24::ATMOSPHERE };
         let paths = if TransportDelay.compiled() || ValveLag.compiled() {
             // The coefficients of a mechanism whose feature is off are zero: as constants, so
             // that an image of the other one carries none of its code.
@@ -921,89 +980,127 @@ impl Twin {
             [LinePath { open: line.effective, share: Q::ONE }, LinePath { open: false, share: Q::ZERO }]
         };
 
-        let s = self.state;
-        let p = s.p;
+        let p = self.state.p;
         let thermal = HeatTransfer.compiled() && e.heat_rate != Q::ZERO;
-        let droop = RegulatorDroop.compiled() && e.droop != Q::ZERO;
         let laminar = LaminarLeak.compiled() && e.laminar != Q::ZERO;
         // The laminar leak's increment (Q24 · Q40 → Q40).
         let laminar_dp: Q<i64, 40> = if laminar { (p.q() - ATMOSPHERE).mul_floor(e.laminar) } else { Q::ZERO };
-        if !thermal && !droop {
-            // Without wall heat and droop the sums below are `Σ share · inflow − leak − laminar −
-            // work`: the base model's step of one substep (the same function, so a one-mechanism
-            // image carries it once) on the first path with a share, the second path's flow and
-            // the laminar leak passed in as `extra` (integer sums: the same bits in any order).
-            let [mut a, mut b] = paths;
-            if a.share == Q::ZERO {
-                (a, b) = (b, a);
-            }
-            let second =
-                if b.share == Q::ZERO { Q::ZERO } else { share_mul_floor(orifice_dp(up(b.open), p, k.c_in), b.share) };
-            self.pressure_step(up(a.open), dx, 1, a.share, laminar_dp - second);
-            return;
+        // The sums are `Σ share · inflow − leak − laminar − work`, energy- and mass-weighted with
+        // heat transfer: the base model's step of one substep (the same function, so a
+        // one-mechanism image carries it once) on the first path with a share, the second path's
+        // flow and the laminar leak passed in as `extra` (integer sums: the same bits in any
+        // order).
+        let [mut a, mut b] = paths;
+        if a.share == Q::ZERO {
+            (a, b) = (b, a);
         }
-        let theta = self.ext.theta.max(Q(1));
-        // √θ only where a flow leaves at the gas temperature (reverse flow, vents): an integer
-        // square root per substep otherwise spent for nothing while the chamber fills.
-        let mut sqrt_cache = None;
-        let mut sqrt_theta = || *sqrt_cache.get_or_insert_with(|| if thermal { isqrt(theta) } else { Q::ONE });
-        // Energy-weighted (pressure) and mass-weighted increments at V0: inflow at the supply
-        // temperature, reverse flow and leaks at the gas temperature (thermal path only).
-        let (mut energy, mut mass) = (Q::<i64, 40>::ZERO, Q::<i64, 40>::ZERO);
-        for path in paths {
-            let share = path.share;
-            if share == Q::ZERO {
-                continue;
-            }
-            let mut upstream = up(path.open);
-            if droop && upstream == k.supply && p < upstream {
-                upstream = drooped_supply(k.supply, p, k.c_in, share, e);
-            }
-            // Q40 · Q30 ([`share_mul_floor`]), skipped when the share is exactly 1 (the whole
-            // substep on one open path), where the product is the flow.
-            let f: Q<i64, 40> = orifice_dp(upstream, p, k.c_in);
-            let f = if share == Q::ONE { f } else { share_mul_floor(f, share) };
-            if !thermal {
-                energy += f;
-                mass += f;
-            } else if f >= Q::ZERO {
-                energy += f.mul_floor(e.sqrt_theta_s);
-                mass += f.mul_floor(e.inv_sqrt_theta_s);
-            } else {
-                energy += f.mul_floor(sqrt_theta());
-                mass += f.div_trunc(sqrt_theta());
-            }
-        }
-        // `vent_increments`, its terms that are zero skipped: no leak orifice (the nominal brake
-        // has none) or no laminar leak (then the products and the quotient are 0).
-        let leak = orifice_dp(p, PressureQ24::ATMOSPHERE, k.c_leak);
-        if leak != Q::ZERO {
-            if thermal {
-                energy -= leak.mul_floor(sqrt_theta());
-                mass -= leak.div_trunc(sqrt_theta());
-            } else {
-                energy -= leak;
-                mass -= leak;
-            }
-        }
-        if laminar {
-            energy -= if thermal { laminar_dp.mul_floor(theta) } else { laminar_dp };
-            mass -= laminar_dp;
-        }
-
-        let inv_vol = inverse_volume_ratio(s.x, k.area_per_v0);
-        let work = compression_work(p, dx, k.kappa_area_per_v0);
-        if thermal {
-            let dvol: Q<i64, 30> = dx.mul_floor::<16, 30>(k.area_per_v0).mul_floor(inv_vol);
-            let (p_new, theta_new) = chamber_substep(p, theta, energy - work, mass, inv_vol, dvol, e.heat_rate);
-            self.state.p = p_new;
-            self.ext.theta = theta_new;
+        // The gas leaves the laminar leak and a reverse flow at its own temperature.
+        let gas = if thermal && (laminar || b.share != Q::ZERO) {
+            gas_temperature(p, self.ext.wall_pressure(inverse_volume_ratio(self.state.x, k.area_per_v0)))
         } else {
-            // `chamber_substep` without wall heat: θ unchanged, the pressure as in the base model.
-            let dp: Q<i64, 24> = (energy - work).mul_round(inv_vol);
-            self.state.p = PressureQ24::from_q(p.q() + dp).clamp(PressureQ24(0), P_MAX);
+            GAS_AT_WALL
+        };
+        let mut extra = if thermal { laminar_dp.mul_floor(gas.theta) } else { laminar_dp };
+        let mut extra_mass = laminar_dp;
+        if b.share != Q::ZERO {
+            let f = share_mul_floor(orifice_dp(path_upstream(&k, &mut self.ext, p, b), p, k.c_in), b.share);
+            if !thermal {
+                extra -= f;
+                extra_mass -= f;
+            } else {
+                let (energy, mass) = if f < Q::ZERO {
+                    (gas.sqrt_theta, gas.inv_sqrt_theta)
+                } else {
+                    (e.sqrt_theta_s, e.inv_sqrt_theta_s)
+                };
+                extra -= f.mul_floor(energy);
+                extra_mass -= f.mul_floor(mass);
+            }
         }
+        let upstream_a = path_upstream(&k, &mut self.ext, p, a);
+        self.pressure_step(upstream_a, dx, 1, a.share, extra, extra_mass);
     }
+}
+
+/// The pressure a valve path draws from at chamber pressure `p`: the supply or the atmosphere,
+/// the supply sagging with the path's flow (regulator droop: [`drooped_supply`], from the last
+/// substep's root in `ext`). Inlined, so that the droop's code is compiled out with its feature.
+#[inline(always)]
+fn path_upstream(k: &TwinCoeffs, ext: &mut ExtState, p: PressureQ24, path: LinePath) -> PressureQ24 {
+    let upstream = if path.open { k.supply } else { PressureQ24::ATMOSPHERE };
+    if RegulatorDroop.compiled() && k.ext.droop_gain != Q::ZERO && upstream == k.supply && p < upstream {
+        ext.drooped = drooped_supply(k.supply, p, ext.drooped, path.share, k.ext.droop_gain);
+        return ext.drooped;
+    }
+    upstream
+}
+
+/// θ = T/T_wall of the gas, √θ and 1/√θ (Q24).
+#[derive(Debug, Clone, Copy)]
+struct GasTemperature {
+    theta: Q<i64, 24>,
+    sqrt_theta: Q<i64, 24>,
+    inv_sqrt_theta: Q<i64, 24>,
+}
+
+/// The gas at the wall temperature (θ = 1; without heat transfer where the flows' weights are 1).
+const GAS_AT_WALL: GasTemperature = GasTemperature { theta: Q::ONE, sqrt_theta: Q::ONE, inv_sqrt_theta: Q::ONE };
+
+/// θ = T/T_wall = p/p_w of the gas at pressure `p` whose pressure at the wall temperature is
+/// `wall_p` (clamped to 1/4..4, as far as a chamber's gas cools or heats), with √θ and 1/√θ,
+/// all Q24. In 32 bits: [`quotient_q24`] for θ and 1/√θ, a 32-bit square root (rounded to
+/// nearest: a bias of the outflow's weights would accumulate in the pressure while air leaves).
+#[cfg_attr(mechanism_image, inline(never))]
+fn gas_temperature(p: PressureQ24, wall_p: Q<i64, 24>) -> GasTemperature {
+    let p = p.0.max(1 << 16) as u32;
+    // p/4 ≤ p_w ≤ 4p (p ≤ 30 bar: below 2^31): θ in 1/4..4, up to the quotient's rounding.
+    // (max and min: a clamp's bounds check would be code, and p/4 ≤ 4p.)
+    let wall = wall_p.0.max(i64::from(p >> 2)).min(i64::from(p) << 2) as u32;
+    let theta = quotient_q24(p, wall).min((1 << 26) - 1);
+    // θ < 4 in Q24 shifted by 6 is below 2^32: its square root is √θ in Q15.
+    let sqrt_theta = isqrt_u32(theta << 6) << 9;
+    GasTemperature {
+        theta: Q(theta.into()),
+        sqrt_theta: Q(sqrt_theta.into()),
+        inv_sqrt_theta: Q(quotient_q24(1 << 24, sqrt_theta).into()),
+    }
+}
+
+/// n · 2^24 / d (the Q24 quotient of two Q24 values) for 2^8 ≤ d < 2^31, where it is below
+/// 2^32: by the [`reciprocal`] (relative error below 2^-14).
+#[inline(never)]
+fn quotient_q24(n: u32, d: u32) -> u32 {
+    let (recip, shift) = reciprocal(d);
+    ((u64::from(n) * u64::from(recip)) >> (23 - shift)) as u32
+}
+
+/// 1/d by one 32-bit division, for 1 ≤ d < 2^31: `(recip, shift)` with recip ≈ 2^(47 −
+/// shift)/d (16 significant bits, relative error below 2^-14).
+/// The M4 divides only 32 bits in hardware; a 64-bit quotient is compiler-builtins' ≈ 1 KiB
+/// routine at ≈ 150–250 instructions.
+#[inline(always)]
+fn reciprocal(d: u32) -> (u32, u32) {
+    let shift = d.leading_zeros(); // 1..=31
+                                   // 2^15..2^16: d ≈ top · 2^(16 − shift); its top bit set again, a no-op that shows the
+                                   // compiler the divisor is not zero (no check and panic path).
+    let top = ((d << (shift - 1)) >> 15) | (1 << 15);
+    ((1 << 31) / top, shift)
+}
+
+/// Square root of a `u32`, rounded to nearest (digit by digit: ≈ 40 bytes, 16 rounds).
+fn isqrt_u32(x: u32) -> u32 {
+    let (mut rest, mut root, mut bit) = (x, 0u32, 1u32 << 30);
+    while bit != 0 {
+        if rest >= root + bit {
+            rest -= root + bit;
+            root = (root >> 1) + bit;
+        } else {
+            root >>= 1;
+        }
+        bit >>= 2;
+    }
+    // x = root² + rest: √x is nearer root + 1 when rest > root.
+    root + u32::from(rest > root)
 }
 
 /// h/τ of a gas-to-wall heat transfer time constant τ (s, 0 = none) at substep `h_s` (0 = off,
@@ -1077,37 +1174,52 @@ pub fn chamber_substep(
     (PressureQ24::from_q(p.q() + dp).clamp(PressureQ24(0), P_MAX), theta_new)
 }
 
-/// Supply pressure pu sagging with the flow: the root of pu = Ps − droop · m(pu)/m_ref in
-/// [p, Ps] (monotone), by bisection to 1/256 of the bracket, then linear interpolation.
-fn drooped_supply(supply: PressureQ24, p: PressureQ24, c: Q<i64, 32>, share: Q<i64, 30>, e: &ExtCoeffs) -> PressureQ24 {
-    // g(pu) = pu − Ps + sag(pu): increasing in pu, g(p) ≤ 0 ≤ g(Ps).
-    let g = |pu: PressureQ24| -> Q<i64, 24> {
-        // Q40 · Q30 in 128 bits, as in `pressure_substep_ext`.
-        let f: Q<i64, 40> = orifice_dp(pu, p, c).max(Q::ZERO).wide_mul_floor(share);
-        // droop · f / droop_ref: f and droop_ref are both Q40. The product overflows 64 bits
-        // with a large orifice and droop: 128 bits (the quotient, droop times the flow ratio to
-        // the nominal orifice's, is at most ≈ 64 · 5 bar and fits).
-        let sag = i128::from(e.droop.0) * i128::from(f.0) / i128::from(e.droop_ref.0);
-        pu.q() - supply.q() + Q(sat_i64(sag))
-    };
-    let (mut lo, mut hi) = (p, supply);
-    let (mut g_lo, mut g_hi) = (g(lo), g(hi));
-    for _ in 0..8 {
-        let mid = PressureQ24(lo.0 + ((hi.0 - lo.0) >> 1));
-        let g_mid = g(mid);
-        if g_mid <= Q::ZERO {
-            (lo, g_lo) = (mid, g_mid);
-        } else {
-            (hi, g_hi) = (mid, g_mid);
+/// Supply pressure u sagging with the flow: the root of g(u) = u − Ps + K · share · u φ(p/u)
+/// in [p, Ps] (`droop_gain` = K, [`ExtCoeffs`]; the sag is D · m/m_ref), by one Newton step from
+/// `guess`, the last substep's root: the root moves little in a substep (2 ms), and g is
+/// increasing (g' ≥ 1) and concave in u (the flow's slope falls as u rises above p), so a step
+/// never leaves [p, Ps] on the far side and the iterates approach the root. The slope is the
+/// flow table's segment's, so within a segment the step lands on the root of the table's flow.
+fn drooped_supply(
+    supply: PressureQ24,
+    p: PressureQ24,
+    guess: PressureQ24,
+    share: Q<i64, 30>,
+    k: Q<i64, 30>,
+) -> PressureQ24 {
+    // (max and min rather than clamp: the caller has p < supply, and a bounds check is code.)
+    let u = guess.max(p).min(supply);
+    let k = if share == Q::ONE { k } else { droop_mul_floor(share, k) };
+    // u φ(r) (Q24 bar, the choked pressure times the normalised flow) and its derivative in u,
+    // φ − r φ' (Q16).
+    let (u_phi, slope) = match pressure_ratio_q16(u, p) {
+        Some(r) => {
+            let phi = flow_norm_q16(r);
+            let u_phi: Q<i64, 24> = u.q().mul_floor(Q::<i64, 16>(phi));
+            // r φ' in Q16: the segment's fall (below 2^16) times r (at most 2^16) fits 32 bits.
+            (u_phi, Q::<i64, 16>(phi + i64::from((flow_norm_fall(r) * r) >> lut::FLOW_STEP_SHIFT)))
         }
+        None => (Q::ZERO, Q::ZERO),
+    };
+    let g: Q<i64, 24> = u.q() - supply.q() + droop_mul_floor(u_phi, k);
+    // dg ≥ 1 (Q16: at least 2^16); below 2^31 for K ≤ 320 and slopes up to ≈ 95.
+    let dg: Q<i64, 16> = Q::ONE + droop_mul_floor(slope, k);
+    let (recip, shift) = reciprocal(dg.0.min(i64::from(i32::MAX)) as u32);
+    // g / dg in Q24: g · 2^16/dg.
+    let step = (g.0 * i64::from(recip)) >> (31 - shift);
+    PressureQ24((u.q().0 - step).max(i64::from(p.0)).min(i64::from(supply.0)) as i32)
+}
+
+/// The regulator droop's products (Q24 or Q16 by the Q30 gain K): in 128 bits with the
+/// `extensions` feature (the host: K up to 5 bar/1 bar · 64 for a 10 mm orifice), in 64 bits
+/// in a firmware image (the nominal brake: K ≤ 5/8.7, products below 2^60).
+#[inline(always)]
+fn droop_mul_floor<const F: u32>(a: Q<i64, F>, k: Q<i64, 30>) -> Q<i64, F> {
+    if cfg!(feature = "extensions") {
+        a.wide_mul_floor(k)
+    } else {
+        a.mul_floor(k)
     }
-    let span = g_hi - g_lo;
-    if span <= Q::ZERO {
-        return lo;
-    }
-    // (hi − lo) · −g(lo) / span ≤ hi − lo: the product in 128 bits (g can reach hundreds of bar).
-    let step = i128::from(hi.0 - lo.0) * -i128::from(g_lo.0) / i128::from(span.0);
-    PressureQ24::from_q(lo.q() + Q(sat_i64(step)))
 }
 
 /// Square root of a Q24 value (integer square root: same bits on every target; negative
@@ -1117,10 +1229,12 @@ pub fn isqrt(x: Q<i64, 24>) -> Q<i64, 24> {
     Q(((x.0.max(0) as u64) << 24).isqrt() as i64)
 }
 
-/// Progressive spring term K β x² / L, N (0 when the spring is linear).
+/// Progressive spring term K β x² / L, N (0 when the spring is linear). Compiled out without
+/// the mechanism's feature (its coefficient is then zero): the nominal image and the other
+/// mechanisms' images carry neither inlined copy (132 B of flash).
 #[inline]
 fn spring_quad(k: &TwinCoeffs, x: MetersQ32) -> Q<i64, 12> {
-    if k.ext.spring_quad == Q::ZERO {
+    if !ProgressiveSpring.compiled() || k.ext.spring_quad == Q::ZERO {
         return Q::ZERO;
     }
     let x = x.widen();
@@ -1160,6 +1274,35 @@ pub fn flow_norm_q16(r_q16: u32) -> i64 {
     a + ((b - a) * frac >> lut::FLOW_STEP_SHIFT)
 }
 
+/// How much [`flow_norm_q16`] falls over the table segment at r (Q16 per grid step: the slope
+/// −dφ/dr is this · 2^(16 − FLOW_STEP_SHIFT) per unit ratio in Q16); 0 where the flow is choked,
+/// the last (laminar) segment's at r = 1.
+#[inline]
+fn flow_norm_fall(r_q16: u32) -> u32 {
+    if r_q16 <= lut::FLOW_R0_Q16 {
+        return 0;
+    }
+    let idx = (((r_q16 - lut::FLOW_R0_Q16) >> lut::FLOW_STEP_SHIFT) as usize).min(lut::FLOW_NORM_Q16.len() - 2);
+    u32::from(lut::FLOW_NORM_Q16[idx]) - u32::from(lut::FLOW_NORM_Q16[idx + 1])
+}
+
+/// The pressure ratio `down`/`up` in Q16 (at most 1) for `up` ≥ `down`, with a 32-bit division:
+/// numerator Q28, denominator Q12. Pressures above 16 bar abs (outside the sensor range) lose
+/// one bit instead of overflowing. `None` when `up` is below 2^-12 bar.
+#[inline(always)]
+fn pressure_ratio_q16(up_p: PressureQ24, down_p: PressureQ24) -> Option<u32> {
+    let (mut up, mut down) = (up_p.0.max(0) as u32, down_p.0.max(0) as u32);
+    while up >= 1 << 28 {
+        up >>= 1;
+        down >>= 1;
+    }
+    let den = up >> 12;
+    if den == 0 {
+        return None;
+    }
+    Some(((down << 4) / den).min(1 << 16))
+}
+
 /// Pressure increment (bar, at V = V0, per substep) from the flow through an orifice of gain
 /// `c` between `from` and `to` (bar abs); negative when the flow reverses.
 ///
@@ -1173,18 +1316,7 @@ pub fn orifice_dp(from: PressureQ24, to: PressureQ24, c: Q<i64, 32>) -> Q<i64, 4
         return Q::ZERO;
     }
     let (up_p, down_p, sign) = if from > to { (from, to, 1) } else { (to, from, -1) };
-    // Ratio in Q16 with a 32-bit division: numerator Q28, denominator Q12. Pressures above
-    // 16 bar abs (outside the sensor range) lose one bit instead of overflowing.
-    let (mut up, mut down) = (up_p.0.max(0) as u32, down_p.0.max(0) as u32);
-    while up >= 1 << 28 {
-        up >>= 1;
-        down >>= 1;
-    }
-    let den = up >> 12;
-    if den == 0 {
-        return Q::ZERO;
-    }
-    let r_q16 = ((down << 4) / den).min(1 << 16);
+    let Some(r_q16) = pressure_ratio_q16(up_p, down_p) else { return Q::ZERO };
     let phi = Q::<i64, 16>(flow_norm_q16(r_q16));
     let choked: Q<i64, 24> = up_p.q().mul_floor(phi);
     choked.mul_floor::<32, 40>(c) * sign
@@ -1355,7 +1487,10 @@ mod tests {
     /// FNV-1a digest of every sample, held flag and state of the earlier path over these 295
     /// runs (1.5 M samples; it was compared sample by sample with the new path before it was
     /// removed): a change of any bit fails here. A deliberate change of the twin's arithmetic
-    /// updates the constant, with the reason in the commit.
+    /// updates the constant, with the reason in the commit. (Last changed by issue 19 item 4:
+    /// the gas content instead of θ as the heat transfer's state, and one warm-started Newton
+    /// step for the regulator droop; the runs against the `f64` reference, before and after:
+    /// `cargo run --release -p pbm-lab --example ext_vs_reference`.)
     #[cfg(feature = "extensions")]
     #[test]
     fn extended_path_equals_the_reference_bit_for_bit() {
@@ -1414,7 +1549,7 @@ mod tests {
                 continue;
             }
             runs += 1;
-            // Regulator droop costs a bisection per substep: shorter runs.
+            // Shorter runs with regulator droop (a bisection per substep when the digest was made).
             let samples = if p.ext.is_on(RegulatorDroop) { 1500 } else { 6000 };
             let mut open = true;
             for i in 0..samples {
@@ -1426,7 +1561,7 @@ mod tests {
             }
         }
         assert_eq!(runs, 295);
-        assert_eq!(digest.0, 0xa745_5fc1_382e_8824, "the extended twin's bits changed");
+        assert_eq!(digest.0, 0xf5d7_0b6d_eb73_2a59, "the extended twin's bits changed");
     }
 
     /// What [`share_mul_floor`] relies on in a firmware image (nominal brake, one mechanism at

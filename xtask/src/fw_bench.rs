@@ -297,15 +297,10 @@ impl MechanismImage {
     }
 }
 
-/// Mechanisms whose image does not fit the budget (bench/firmware.md says why); every other
-/// mechanism's image is held to the budget by `fw-bench --check`.
-const OVER_BUDGET: [&str; 2] = ["heat_transfer", "regulator_droop"];
-
-/// `fw-bench --check`: every mechanism's image but those of [`OVER_BUDGET`] within the flash, RAM
-/// and per-sample budgets.
+/// `fw-bench --check`: every mechanism's image within the flash, RAM and per-sample budgets.
 fn check_extended() -> Result<()> {
     let mut failed = Vec::new();
-    for spec in EXTENDED.into_iter().filter(|s| !OVER_BUDGET.iter().any(|o| s.starts_with(&format!("{o}=")))) {
+    for spec in EXTENDED {
         let image = MechanismImage::measure(spec)?;
         print!("{}", image.row()?);
         if !image.fits()? {
@@ -362,31 +357,31 @@ Every mechanism's terms compiled in (`--features extensions`, `heat_transfer=20`
 run is then data): flash {flash} B ({v_flash}), RAM = static {static_ram} B + peak stack
 {peak_stack} B = {ram} B ({v_ram}). Its `monitor` run: diagnosis closed {closed}.
 
-Eight of the ten fit. What it took: one cargo feature per mechanism (the image carries only that
-mechanism's terms); in the extended path, the base model's step (`Twin::pressure_step`, one copy
-for both paths) wherever there is no wall heat and no droop, with the valve line's second path
-and the laminar leak passed in as one extra increment; the 64-bit product for a valve path's
-share (the nominal brake's flows fit 64 bits; 128 on the host); √θ only where a flow leaves at
-the gas temperature; zero vents skipped; the orifice flow out of line in these images (≈ 250 B
+All ten fit (`fw-bench --check` holds every one to the budget). What it took: one cargo feature
+per mechanism (the image carries only that mechanism's terms); in the extended path, the base
+model's step (`Twin::pressure_step`, one copy for every mechanism, the wall heat's terms in it
+too), with the valve line's second path and the laminar leak passed in as one extra increment;
+the 64-bit product for a valve path's share (the nominal brake's flows fit 64 bits; 128 on the
+host); zero vents skipped; terms whose feature is off compiled out (the progressive spring's
+term too: 132 B in every other image and the nominal one); the orifice flow out of line in these images (≈ 250 B
 each use) and the twin copied from flash. All exact: the same bits as the host.
 
-Two do not fit (their images build, run and compute the host's bits, over budget; `fw-bench
---check` holds the other eight to the budget):
+The two that did not fit (issue 19 item 4; the host twin's bits changed with them, the
+`f64` reference's agreement checked run by run: `cargo run --release -p pbm-lab --example
+ext_vs_reference`):
 
-- `heat_transfer`: ≈ 2.9 KiB over the flash budget and ≈ 1.8× the time budget. The gas
-  temperature is a state; every substep takes four 64-bit divisions (θ's wall-heat ratio, and
-  dT/T's three quotients by p) and, on reverse flow or venting, an integer square root. The
-  divisions pull in compiler-builtins' 64-bit division (≈ 1.1 KiB, ≈ 150–250 instructions each
-  on the M4, which divides 32 bits in hardware only), `u64::isqrt` is ≈ 0.5 KiB, and the thermal
-  substep itself ≈ 1.2 KiB. Open: an exact 64-by-32-bit division from two hardware divisions
-  (the divisors, p and θ, fit 32 bits) would save ≈ 1 KiB and ≈ 2000 instructions a sample, which
-  still leaves it over on both counts; within budget it needs a cheaper thermal formulation,
-  which changes the host twin's bits (the reference) and belongs with the model's owner.
-- `regulator_droop`: ≈ 20× the time budget and ≈ 4.5 KiB over the flash budget. The drooped
-  supply is the root of pu = Ps − droop · m(pu)/m_ref, found by an eight-step bisection with an
-  orifice flow and a 128-bit quotient per step, in every substep of the fill. Within budget it
-  needs a different solver (a closed form, or one Newton step from the last substep's root),
-  which changes the host twin's bits; left open.
+- `heat_transfer` (was 35648 B, 8880 instructions): the gas temperature was a state θ, and every
+  substep took four 64-bit divisions (compiler-builtins' routine, ≈ 1.1 KiB and ≈ 150–250
+  instructions each on the M4, which divides 32 bits only) and on reverse flow a 64-bit square
+  root (`u64::isqrt`, ≈ 0.5 KiB). Now the state is the gas content (its mass, summed exactly)
+  beside the pressure, and θ = p/p_w follows from the two: the wall heat is (p_w − p) h/τ, no
+  division while the chamber fills; a venting substep takes two 32-bit divisions (a 16-bit
+  reciprocal) and a 32-bit square root for √θ and 1/√θ.
+- `regulator_droop` (was 37328 B, 100600 instructions): the drooped supply, the root of
+  pu = Ps − droop · m(pu)/m_ref, took an eight-step bisection with an orifice flow and a 128-bit
+  quotient per step, in every substep of the fill. Now droop/m_ref is a coefficient, and one
+  Newton step a substep from the last substep's root (the flow table's own slope, a 32-bit
+  reciprocal) solves it: the residual is concave in pu, so the steps stay in [p, Ps].
 "#,
         v_flash = over(flash, TARGET_FLASH),
         v_ram = over(ram, TARGET_RAM),
@@ -547,7 +542,7 @@ coinciding with twin substeps while the nominal twin's piston moves.
 
 What was cut (2026-11-23, from 48008 B, nothing the monitor does removed):
 
-- the twin's optional mechanisms (`pbm::mechanism`, ≈ 4.4 KiB then, ≈ 7.8 KiB today with all
+- the twin's optional mechanisms (`pbm::mechanism`, ≈ 4.4 KiB then, ≈ 4.0 KiB today with all
   ten: "Extended twin images" below): the core's cargo feature `extensions` (default, host
   tools) is off in the firmware, which runs only the nominal twin; `Twin::update` then never
   takes the extended path and `TwinCoeffs::new` rejects parameters that use a mechanism (an
