@@ -1308,3 +1308,57 @@ fn a_lag_4096_replay_of_an_old_release_does_not_lock_out_the_heartbeat() {
         assert!(r.result.is_ok(), "{k}: {r:?}");
     }
 }
+
+/// A stream whose fault report changes every 100 ms from 2 s on (the reporter then sends at its
+/// 10 Hz bound: the 4-bit counter goes round in 1.6 s).
+fn fast_stream(seconds: u32) -> Vec<(u64, CanFrame)> {
+    stream_of(seconds, |n| {
+        (n >= 200).then(|| FaultReport {
+            verdict: Verdict::Class { class: FaultClass::AirLeak, confidence_pct: 50 + ((n / 10) % 40) as u8 },
+            ..example_fault()
+        })
+    })
+}
+
+/// Bursts of lost fault reports (8 to 33 in a row, heartbeats intact): the genuine reports after
+/// them are accepted and none is withdrawn; the losses are reported. (A black-box tester found
+/// 8–14 lost getting the next ones flagged as going back, and 15 or more getting a genuine one
+/// withdrawn: the 4-bit counter and count were read modulo 16 without the rate bound.)
+#[test]
+fn bursts_of_lost_fault_reports_reject_and_withdraw_nothing() {
+    let g = fast_stream(20);
+    let faults: Vec<usize> = (0..g.len()).filter(|&i| !is_status(&g[i].1)).collect();
+    for burst in [8usize, 10, 12, 14, 15, 16, 20, 31, 33] {
+        for start in [20usize, 37, 55] {
+            let cut: Vec<usize> = faults[start..start + burst].to_vec();
+            let s: Vec<(u64, CanFrame)> =
+                g.iter().enumerate().filter(|(i, _)| !cut.contains(i)).map(|(_, x)| *x).collect();
+            let mut d = Decoder::new();
+            let mut lost = 0u32;
+            for (t, f) in &s {
+                let r = d.receive(*t, f);
+                assert!(r.result.is_ok(), "burst {burst} at {start}: {t}: {r:?}");
+                assert_eq!(r.withdrawn, 0, "burst {burst} at {start}: {t}");
+                lost += u32::from(r.lost_fault_reports);
+            }
+            assert!(lost > 0, "burst {burst} at {start}: the loss is reported");
+        }
+    }
+}
+
+/// The first report of a release delayed 1.2 s by a gateway, arriving after the next one: the
+/// delayed one is flagged, every later genuine report accepted. (The receiver took the pair for
+/// a reordering and moved the release start by a second; every later report was then flagged.)
+#[test]
+fn a_delayed_first_report_does_not_get_the_rest_of_the_release_rejected() {
+    let g = genuine_stream(20);
+    // The first fault report (2.3 s) moved to 3.5 s, after the repeat of 3.3 s.
+    let first = g.iter().position(|(_, f)| !is_status(f)).unwrap();
+    let mut s = g.clone();
+    let (_, f) = s.remove(first);
+    let at = s.iter().position(|(t, _)| *t > 3_500_000).unwrap();
+    s.insert(at, (3_500_000, f));
+    let fl = flags(&s);
+    assert_eq!(fl[at], Some("stale"));
+    assert_eq!(flagged(&fl), 1, "{fl:?}");
+}

@@ -146,7 +146,8 @@ struct FaultTrack {
     unverified: bool,
     /// How much later than first estimated the release start was moved by a latency step.
     lag_us: i64,
-    /// Release start implied by the last report flagged as late (for a latency step).
+    /// Release start implied by the last report flagged as late (for a latency step) or as
+    /// early (for a release start set by a delayed first report).
     late_start_us: Option<i64>,
 }
 
@@ -176,6 +177,8 @@ struct Session {
     release_before_us: Option<u64>,
     /// The counter the next fault report should carry.
     next_fault: u8,
+    /// `FaultReportCount` of the last accepted status frame.
+    status_count: u8,
     /// Counter of the last accepted fault report.
     last_fault_counter: Option<u8>,
     fault: Option<FaultTrack>,
@@ -486,6 +489,7 @@ impl Decoder {
             release_before_us: None,
             power_up_us: diff(now, u64::from(link.counter) * STATUS_PERIOD_US),
             next_fault: link.fault_count & 0xF,
+            status_count: link.fault_count & 0xF,
             last_fault_counter: None,
             fault: None,
             tentative,
@@ -529,45 +533,53 @@ impl Decoder {
         } else if !c.undo_release {
             s.release_prev = None;
         }
-        // Fault reports the sender counted that never arrived here. The last one counted may
-        // be the report of this frame's own tick, overtaken by it: owed, lost only if anything
-        // else comes first. A report owed since the previous status frame is lost. (A count
-        // behind ours: a fault report overtook this frame, nothing lost.)
-        // Reports this receiver accepted that the count leaves out: legitimate only for the
-        // report of this frame's own tick (sent first, or a moment after it was composed); once
-        // the count stays below them longer than any latency difference the receiver allows,
-        // the monitor did not send them.
-        let ahead = |s: &Session| s.next_fault.wrapping_sub(link.fault_count) & 0xF;
-        if (1..=8).contains(&ahead(&s)) {
-            let since_report = s.fault.map_or(u64::MAX, |f| now.saturating_sub(f.at_us));
-            let own_tick = ahead(&s) == 1 && since_report <= MAX_LATENCY_STEP_US + TOLERANCE_US;
-            if !own_tick {
-                if let Some(u) = s.unconfirmed.take() {
+        // The status frames' `FaultReportCount` against the reports accepted. The count is 4
+        // bits: between two status frames one period apart the sender sends at most 11 reports
+        // (one per 100 ms), so the count's step is the number sent; after a longer gap it is
+        // ambiguous and the receiver believes what it accepted.
+        let count = link.fault_count & 0xF;
+        let reports_in = |since: u64| now.saturating_sub(since).saturating_add(2 * TOLERANCE_US) / FAULT_MIN_GAP_US;
+        let since_report = s.fault.map_or(u64::MAX, |f| now.saturating_sub(f.at_us));
+        // The report of this frame's own tick may come first without being counted by it.
+        let own_tick = since_report <= MAX_LATENCY_STEP_US + TOLERANCE_US;
+        if let Some(u) = s.unconfirmed {
+            if reports_in(s.at_us) >= 16 {
+                s.unconfirmed = None;
+            } else {
+                // Reports accepted since the last status frame carry the counters from its count
+                // on; this count must be past the last of them.
+                let sent = count.wrapping_sub(s.status_count) & 0xF;
+                let last = s.next_fault.wrapping_sub(1).wrapping_sub(s.status_count) & 0xF;
+                if last < sent {
+                    s.unconfirmed = None;
+                } else if !(last == sent && own_tick) {
+                    // The monitor never sent them: withdrawn.
                     rec.withdrawn = u.reports;
                     s.fault = u.fault;
                     s.last_fault_counter = u.last_fault_counter;
                     s.next_fault = u.next_fault;
                     s.owed_fault = u.owed_fault;
-                }
-                // Still ahead with no report to withdraw: the count held came from a status frame
-                // corrupted in a way the CRC missed; the count only grows, so this one is right.
-                if (1..=8).contains(&ahead(&s)) {
-                    s.next_fault = link.fault_count & 0xF;
-                    s.owed_fault = None;
+                    s.unconfirmed = None;
                 }
             }
-        } else {
-            s.unconfirmed = None;
         }
+        // Fault reports the sender counted that never arrived here. The last one counted may
+        // be the report of this frame's own tick, overtaken by it: owed, lost only if anything
+        // else comes first. A report owed since the previous status frame is lost. A count that
+        // more reports than the time allows would have to explain is behind ours: the report of
+        // this frame's tick came first (nothing lost), or a count the receiver held came from a
+        // status frame corrupted in a way the CRC missed (the count only grows: this one is right).
+        let learnt = s.fault.map_or(s.at_us, |f| f.at_us.max(s.at_us));
         let mut lost = u8::from(s.owed_fault.take().is_some());
-        let behind = link.fault_count.wrapping_sub(s.next_fault) & 0xF;
-        if behind < 8 {
-            if behind > 0 {
-                lost += behind - 1;
-                s.owed_fault = Some(link.fault_count.wrapping_sub(1) & 0xF);
-            }
-            s.next_fault = link.fault_count & 0xF;
+        let behind = count.wrapping_sub(s.next_fault) & 0xF;
+        if behind > 0 && u64::from(behind) <= reports_in(learnt) && !(behind == 15 && own_tick) {
+            lost += behind - 1;
+            s.owed_fault = Some(count.wrapping_sub(1) & 0xF);
+            s.next_fault = count;
+        } else if behind > 0 && !(behind == 15 && own_tick) {
+            s.next_fault = count;
         }
+        s.status_count = count;
         rec.lost_fault_reports = lost;
         // The session clock: when a frame with this counter was due.
         let span = d.saturating_mul(STATUS_PERIOD_US);
@@ -715,7 +727,10 @@ impl Decoder {
                             // distance and set the release start that much too early.
                             let mut g = f;
                             g.start_us = g.start_us.saturating_add(i64::from(f.tau - tau) * TAU_STEP_US as i64);
-                            g.single = false;
+                            // Or this one was delayed (by more than the pair's distance): the
+                            // start before the move stays a candidate, which the next report
+                            // confirms by agreeing with it.
+                            g.late_start_us = Some(f.start_us);
                             self.set_fault(g, in_lost);
                         }
                         return Err(FrameError::Stale { last: f.tau, got: tau });
@@ -743,7 +758,18 @@ impl Decoder {
                         start_us = start;
                         lag_us = lag_us.saturating_add(off);
                     } else if off < -(FAULT_EARLY_US as i64) {
-                        return Err(FrameError::Untimely { off_ms: ms(off) });
+                        // Early beyond what a latency change explains: the release start rests on
+                        // one report that came late (a delayed first report), or this one is
+                        // old. Two reports in a row that agree on the earlier start, which the
+                        // heartbeats allow, move it there; one alone is flagged.
+                        let agrees = f.late_start_us.is_some_and(|ls| start.saturating_sub(ls).abs() <= slack);
+                        if !(f.single && agrees && self.first_of_release(&s, identity, start, slack).is_ok()) {
+                            let mut g = f;
+                            g.late_start_us = Some(start);
+                            self.set_fault(g, in_lost);
+                            return Err(FrameError::Untimely { off_ms: ms(off) });
+                        }
+                        start_us = start;
                     }
                     FaultTrack {
                         at_us: now,
@@ -773,7 +799,7 @@ impl Decoder {
         let recent = s.fault.is_some_and(|f| diff(now, f.at_us) < (16 * FAULT_MIN_GAP_US - TOLERANCE_US) as i64);
         if let (Some(last), true) = (s.last_fault_counter, recent) {
             let d = counter.wrapping_sub(last) & 0xF;
-            if d == 0 || d >= 8 {
+            if d == 0 {
                 return Err(FrameError::Stale { last: u16::from(last), got: u16::from(counter) });
             }
         }
@@ -805,7 +831,7 @@ impl Decoder {
         unconfirmed.reports = unconfirmed.reports.saturating_add(1);
         // A report the last status frame counted and this is not: lost.
         let mut lost = s.owed_fault.take().map_or(0, |o| u8::from(o != counter));
-        if d < 8 {
+        if !overtaken && u64::from(d) <= possible {
             // (A report the status frame overtook is the owed one: d = 15.)
             lost += d;
         }

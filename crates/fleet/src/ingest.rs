@@ -30,8 +30,7 @@ use pbm_io::dataset::TraceItem;
 use pbm_io::error::{FileError, Skipped};
 use pbm_io::trace::TraceReader;
 use pbm_lab::replay::{
-    replay_archived_observing, replay_item_observing, ReplayError, ReplayOptions, ReplaySample, TimedFrame,
-    TraceReplay,
+    replay_archived_observing, replay_item_observing, ReplayError, ReplayOptions, ReplaySample, TimedFrame, TraceReplay,
 };
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -148,7 +147,16 @@ pub fn trace_record(item: &TraceItem, rank: usize) -> Result<Result<ReleaseRecor
         Err(ReplayError::Output(e)) => return Err(e),
     };
     let detail = curve_keeper.detail(&replay);
-    Ok(Ok(record_of(&replay, origin_of(&item.path), "0".to_owned(), release_no, time_s, content_hash, numbered, detail)))
+    Ok(Ok(record_of(
+        &replay,
+        origin_of(&item.path),
+        "0".to_owned(),
+        release_no,
+        time_s,
+        content_hash,
+        numbered,
+        detail,
+    )))
 }
 
 /// The release curve, thinned to the stored step as the samples go by.
