@@ -1362,3 +1362,17 @@ fn a_delayed_first_report_does_not_get_the_rest_of_the_release_rejected() {
     assert_eq!(fl[at], Some("stale"));
     assert_eq!(flagged(&fl), 1, "{fl:?}");
 }
+
+/// A session's opening heartbeat whose counter a corruption moved by 2048 and that kept the
+/// CRC: the live heartbeats looked old (stale) and were flagged until the session timed out.
+/// The next live heartbeat now replaces the tentative session.
+#[test]
+fn a_corrupted_opening_heartbeat_does_not_lock_out_the_session() {
+    let mut d = Decoder::new();
+    assert!(d.receive(0, &status_of((7 + 2048) % 4096, 3, 5)).result.is_ok());
+    let mut flagged = 0;
+    for k in 1..10u16 {
+        flagged += usize::from(d.receive(u64::from(k) * 1_000_000, &status_of(7 + k, 3, 5)).result.is_err());
+    }
+    assert_eq!(flagged, 0);
+}

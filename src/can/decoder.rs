@@ -376,10 +376,12 @@ impl Decoder {
                     // A tentative session rests on one frame, which may itself have been early
                     // or late (or a replay): a newer heartbeat a period or more later that does
                     // not fit its clock replaces it.
-                    Err(FrameError::Untimely { .. })
+                    // (Its counter may look older too: the one frame may have been a corruption
+                    // of the counter that kept the CRC.)
+                    Err(FrameError::Untimely { .. } | FrameError::Stale { .. })
                         if s.tentative
                             && release_not_before(link.identity.release & 0x3F, s.identity.release)
-                            && (1..COUNTER_MOD / 2).contains(&(link.counter.wrapping_sub(s.counter) % COUNTER_MOD))
+                            && link.counter != s.counter
                             && diff(now, s.at_us) >= (STATUS_PERIOD_US - TOLERANCE_US) as i64 =>
                     {
                         rec.superseded = true;
