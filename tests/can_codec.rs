@@ -1376,3 +1376,30 @@ fn a_corrupted_opening_heartbeat_does_not_lock_out_the_session() {
     }
     assert_eq!(flagged, 0);
 }
+
+/// After a silence, a restart whose release number jumped by more than the power-up and a
+/// release command (1 or 2) cannot be told from a recording of an old start-up replayed (the
+/// release number wraps at 64; a black-box tester had such a recording's hour-old reports shown
+/// current): its reports are accepted but never current. A restart one or two releases on is
+/// current.
+#[test]
+fn a_restart_with_a_release_jump_is_not_current() {
+    for (jump, current) in [(1u8, true), (2, true), (3, false), (29, false)] {
+        let mut d = Decoder::new();
+        for k in 0..5u16 {
+            assert!(d.receive(u64::from(k) * 1_000_000, &status_of(100 + k, 3, 5)).result.is_ok());
+        }
+        let t0 = 15_000_000u64;
+        let release = 5 + jump;
+        let id = Identity { locomotive: 3, release };
+        for k in 0..5u16 {
+            let t = t0 + u64::from(k) * 1_000_000;
+            assert!(d.receive(t, &status_of(k, 3, release)).result.is_ok(), "{jump}: {k}");
+            let report = FaultReport { time_since_release_cs: (k * 100 + 30) as u16, ..example_fault() };
+            let r = d.receive(t + 300_000, &encode_fault(&report, k as u8, id));
+            assert!(r.result.is_ok(), "{jump}: {r:?}");
+            assert_eq!(!r.stale, current, "{jump}: {r:?}");
+            assert_eq!(r.restart_jump, if current { 0 } else { jump }, "{jump}");
+        }
+    }
+}

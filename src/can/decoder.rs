@@ -179,6 +179,11 @@ struct Session {
     next_fault: u8,
     /// `FaultReportCount` of the last accepted status frame.
     status_count: u8,
+    /// Opened as a restart whose release number jumped by this much (more than the power-up and
+    /// a release command, 1 or 2) over the newest this receiver saw from the locomotive; 0 when
+    /// not. Such a session cannot be told from a recording of an old start-up replayed (the 6-bit
+    /// release number wraps), so its reports are never current.
+    restart_jump: u8,
     /// Counter of the last accepted fault report.
     last_fault_counter: Option<u8>,
     fault: Option<FaultTrack>,
@@ -246,6 +251,11 @@ pub struct Reception {
     /// CRC. They are withdrawn: a display stops showing them and goes back to the report it
     /// held before them.
     pub withdrawn: u8,
+    /// The session this frame belongs to was opened as a restart whose release number jumped by
+    /// this much (more than 2) over the newest seen from the locomotive: it cannot be told from
+    /// an old start-up recording replayed (the release number wraps at 64), so its fault reports
+    /// are stale, never current. 0 when not.
+    pub restart_jump: u8,
 }
 
 /// Stream decoder of the monitor's frames.
@@ -331,6 +341,7 @@ impl Decoder {
             superseded: false,
             stale: false,
             withdrawn: 0,
+            restart_jump: 0,
         };
         if let Some(s) = self.session {
             let silence = now_us.saturating_sub(s.at_us);
@@ -408,6 +419,10 @@ impl Decoder {
                     {
                         self.lost = Some(s);
                         self.open(now, &link, true, rec);
+                        let jump = (link.identity.release & 0x3F).wrapping_sub(s.identity.release) & 0x3F;
+                        if let (Some(o), true) = (self.session.as_mut(), jump > 2) {
+                            o.restart_jump = jump;
+                        }
                     }
                     Err(e) => {
                         // A newer heartbeat late for the session clock: remember its phase (a
@@ -447,6 +462,10 @@ impl Decoder {
                         return Err(FrameError::Stale { last, got: link.counter });
                     }
                     self.open(now, &link, true, rec);
+                    let jump = release.wrapping_sub(newest) & 0x3F;
+                    if let (Some(o), true) = (self.session.as_mut(), jump > 2) {
+                        o.restart_jump = jump;
+                    }
                 } else {
                     // First contact with this locomotive.
                     self.open(now, &link, true, rec);
@@ -492,6 +511,7 @@ impl Decoder {
             power_up_us: diff(now, u64::from(link.counter) * STATUS_PERIOD_US),
             next_fault: link.fault_count & 0xF,
             status_count: link.fault_count & 0xF,
+            restart_jump: 0,
             last_fault_counter: None,
             fault: None,
             tentative,
@@ -850,7 +870,8 @@ impl Decoder {
         }
         // No heartbeat on time vouches for it: accepted (it may be genuine: a status frame was
         // lost), but not current (a delayed stream, whose heartbeats are flagged, shows here).
-        rec.stale = overdue > 0 || track.unverified;
+        rec.stale = overdue > 0 || track.unverified || s.restart_jump > 0;
+        rec.restart_jump = s.restart_jump;
         if undo_release {
             self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
         }

@@ -179,7 +179,11 @@ impl std::fmt::Display for DecodeSummary {
             write!(f, "; {} fault reports withdrawn (not counted by the monitor's heartbeat)", self.withdrawn)?;
         }
         if self.stale_reports > 0 {
-            write!(f, "; {} fault reports with the heartbeat overdue (shown stale)", self.stale_reports)?;
+            write!(
+                f,
+                "; {} fault reports shown stale (heartbeat overdue, or a restart that cannot be vouched for)",
+                self.stale_reports
+            )?;
         }
         if self.heartbeat_losses > 0 {
             write!(f, "; heartbeat lost {} times", self.heartbeat_losses)?;
@@ -389,6 +393,7 @@ impl<W: Write> CabDisplay<W> {
             superseded: false,
             stale: false,
             withdrawn: 0,
+            restart_jump: 0,
         }
     }
 
@@ -488,7 +493,15 @@ impl<W: Write> CabDisplay<W> {
                 // No live heartbeat vouches for it: shown, never as the current report.
                 self.summary.fault_reports += 1;
                 self.summary.stale_reports += 1;
-                writeln!(self.out, "{}  [stale: heartbeat overdue]", fault_line(t, id, r))?;
+                let why = if reception.restart_jump > 0 {
+                    format!(
+                        "not current: a restart {} releases on, which cannot be told from an old recording",
+                        reception.restart_jump
+                    )
+                } else {
+                    "stale: heartbeat overdue".to_owned()
+                };
+                writeln!(self.out, "{}  [{why}]", fault_line(t, id, r))?;
             }
             (Ok(Report::Fault(r)), DecodeFormat::Text) => {
                 self.summary.fault_reports += 1;
