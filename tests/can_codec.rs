@@ -1369,7 +1369,7 @@ fn a_delayed_first_report_does_not_get_the_rest_of_the_release_rejected() {
 #[test]
 fn a_corrupted_opening_heartbeat_does_not_lock_out_the_session() {
     let mut d = Decoder::new();
-    assert!(d.receive(0, &status_of((7 + 2048) % 4096, 3, 5)).result.is_ok());
+    assert!(d.receive(0, &status_of(7 + 2048, 3, 5)).result.is_ok());
     let mut flagged = 0;
     for k in 1..10u16 {
         flagged += usize::from(d.receive(u64::from(k) * 1_000_000, &status_of(7 + k, 3, 5)).result.is_err());
@@ -1395,7 +1395,7 @@ fn a_restart_with_a_release_jump_is_not_current() {
         for k in 0..5u16 {
             let t = t0 + u64::from(k) * 1_000_000;
             assert!(d.receive(t, &status_of(k, 3, release)).result.is_ok(), "{jump}: {k}");
-            let report = FaultReport { time_since_release_cs: (k * 100 + 30) as u16, ..example_fault() };
+            let report = FaultReport { time_since_release_cs: k * 100 + 30, ..example_fault() };
             let r = d.receive(t + 300_000, &encode_fault(&report, k as u8, id));
             assert!(r.result.is_ok(), "{jump}: {r:?}");
             assert_eq!(!r.stale, current, "{jump}: {r:?}");
