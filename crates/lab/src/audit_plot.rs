@@ -43,7 +43,7 @@ pub fn curves_svg(out: &AuditOutcome, c: &CurveSet) -> Result<String> {
             title_and_legend(&root, &format!("measured vs base vs extended ({})", out.cause), &line_legend(&lines))?;
         let mut chart = ChartBuilder::on(&plot_area)
             .margin(10)
-            .x_label_area_size(30)
+            .x_label_area_size(40)
             .y_label_area_size(50)
             .build_cartesian_2d(0.0..t_end, span(&[&c.measured, &c.base, &c.extended], 0.5))
             .map_err(e)?;
@@ -70,7 +70,7 @@ pub fn residual_svg(out: &AuditOutcome, c: &CurveSet) -> Result<String> {
         let plot_area = title_and_legend(&root, &format!("residual measured − twin (cause: {})", out.cause), &legend)?;
         let mut chart = ChartBuilder::on(&plot_area)
             .margin(10)
-            .x_label_area_size(30)
+            .x_label_area_size(40)
             .y_label_area_size(60)
             .build_cartesian_2d(0.0..t_end, yr.clone())
             .map_err(e)?;
@@ -103,7 +103,7 @@ pub fn acf_svg(out: &AuditOutcome) -> Result<String> {
         let plot_area = title_and_legend(&root, "residual autocorrelation (lag in 50 ms steps)", &legend)?;
         let mut chart = ChartBuilder::on(&plot_area)
             .margin(10)
-            .x_label_area_size(30)
+            .x_label_area_size(40)
             .y_label_area_size(40)
             .build_cartesian_2d(0.0..21.0, -1.0..1.0)
             .map_err(e)?;
@@ -146,7 +146,7 @@ pub fn missing_flow_svg(out: &AuditOutcome, i: usize) -> Result<String> {
             let mut chart = ChartBuilder::on(&left)
                 .caption("unmodelled air flow vs time", ("sans-serif", 16))
                 .margin(10)
-                .x_label_area_size(30)
+                .x_label_area_size(40)
                 .y_label_area_size(55)
                 .build_cartesian_2d(0.0..t_end, yr.clone())
                 .map_err(e)?;
@@ -168,7 +168,7 @@ pub fn missing_flow_svg(out: &AuditOutcome, i: usize) -> Result<String> {
             let mut chart = ChartBuilder::on(&right)
                 .caption("… vs measured pressure", ("sans-serif", 16))
                 .margin(10)
-                .x_label_area_size(30)
+                .x_label_area_size(40)
                 .y_label_area_size(45)
                 .build_cartesian_2d(-0.2..p_hi, yr)
                 .map_err(e)?;

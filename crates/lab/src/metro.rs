@@ -1330,7 +1330,7 @@ pub fn curves_svg(rows: &[MetroRow], out: &MetroOutcome) -> Result<String> {
         let plot_area = title_and_legend(&root, &title, &line_legend(&lines))?;
         let mut chart = ChartBuilder::on(&plot_area)
             .margin(10)
-            .x_label_area_size(30)
+            .x_label_area_size(40)
             .y_label_area_size(50)
             .build_cartesian_2d(0.0..t_end, 7.8..10.4)
             .map_err(e)?;
@@ -1360,7 +1360,7 @@ pub fn residual_svg(rows: &[MetroRow], out: &MetroOutcome) -> Result<String> {
         let plot_area = title_and_legend(&root, "MetroPT-3 TP3 residual, measured − model", &line_legend(&lines))?;
         let mut chart = ChartBuilder::on(&plot_area)
             .margin(10)
-            .x_label_area_size(30)
+            .x_label_area_size(40)
             .y_label_area_size(60)
             .build_cartesian_2d(0.0..t_end, -lim..lim)
             .map_err(e)?;

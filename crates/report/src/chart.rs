@@ -154,8 +154,11 @@ pub fn title_and_legend<DB: DrawingBackend>(
     Ok(rest)
 }
 
-/// Line-swatch legend entries of `(label, points, colour)` lines, in order.
-pub fn line_legend<'a>(lines: &'a [(&'a str, Vec<(f64, f64)>, RGBColor)]) -> Vec<LegendEntry<'a>> {
+/// A labelled line of a plot: legend label, (x, y) points, colour.
+pub type LabelledLine<'a> = (&'a str, Vec<(f64, f64)>, RGBColor);
+
+/// Line-swatch legend entries of labelled lines, in order.
+pub fn line_legend<'a>(lines: &'a [LabelledLine<'a>]) -> Vec<LegendEntry<'a>> {
     lines.iter().map(|(label, _, color)| LegendEntry { label, color: *color, swatch: Swatch::Line }).collect()
 }
 
@@ -184,7 +187,7 @@ pub fn write_line_chart(path: &Path, labels: ChartLabels<'_>, series: &[Series<'
     Ok(())
 }
 
-/// Draws each `(label, points, colour)` as a line on an f64 × f64 chart whose legend
+/// Draws each labelled line as a line on an f64 × f64 chart whose legend
 /// [`title_and_legend`] drew above it (from [`line_legend`] of the same lines): the one way the
 /// audit and metro plots draw their curves.
 pub fn draw_lines<'a, DB: DrawingBackend + 'a>(
@@ -193,7 +196,7 @@ pub fn draw_lines<'a, DB: DrawingBackend + 'a>(
         DB,
         Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
     >,
-    lines: &[(&str, Vec<(f64, f64)>, RGBColor)],
+    lines: &[LabelledLine<'_>],
 ) -> Result<()> {
     let err = |e: &dyn std::fmt::Display| anyhow!("chart: {e}");
     for (_, points, color) in lines {
@@ -239,7 +242,11 @@ mod tests {
             attr(elements[i], "y").unwrap()
         };
         for label in ["rising series", "falling series"] {
-            assert!(label_y(label) < data_top, "{label} at y {} is not above the data (top {data_top})", label_y(label));
+            assert!(
+                label_y(label) < data_top,
+                "{label} at y {} is not above the data (top {data_top})",
+                label_y(label)
+            );
         }
         // Each label's swatch in its colour is in the band too, and the legend draws no box.
         for c in ["#0072B2", "#D55E00"] {

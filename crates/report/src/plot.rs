@@ -72,7 +72,7 @@ pub fn write_replay_svg(path: &Path, p: &ReplayPlot<'_>) -> Result<()> {
     let upper = title_and_legend(&upper, p.title, &legend)?;
     let mut chart = ChartBuilder::on(&upper)
         .margin(10)
-        .x_label_area_size(30)
+        .x_label_area_size(40)
         .y_label_area_size(50)
         .build_cartesian_2d(t_range.clone(), range(&[p.measured_bar, p.twin_bar].concat(), 0.5))
         .map_err(|e| err(&e))?;
@@ -86,7 +86,7 @@ pub fn write_replay_svg(path: &Path, p: &ReplayPlot<'_>) -> Result<()> {
 
     let mut chart = ChartBuilder::on(&lower)
         .margin(10)
-        .x_label_area_size(30)
+        .x_label_area_size(40)
         .y_label_area_size(50)
         .build_cartesian_2d(t_range, range(p.residual_bar, 0.05))
         .map_err(|e| err(&e))?;
