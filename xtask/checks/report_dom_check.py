@@ -4,12 +4,21 @@
     report_dom_check.py demo DOM.html SCREENSHOT.png SCROLL.png REPORT_DIR
     report_dom_check.py locomotive DOM.html SCREENSHOT.png SCROLL.png REPORT_DIR
     report_dom_check.py overflow SCROLL.png
+    report_dom_check.py legends FILE.html|FILE.svg
 
 `demo` checks the demo's index page (the fleet table first, then the rest of the report), `locomotive`
 one locomotive page. Both check: every required section present and non-empty, every inline SVG
 drawing marks, every table with filled body rows, no script or external resource, the screenshot
-not blank, plot text of at least 11 px, and no horizontal overflow at 1280 px. The fleet table must
-come first and link every locomotive to a page that exists in REPORT_DIR. `overflow` only runs the overflow check (exit status 1 when the page overflows).
+not blank, plot text of at least 11 px, no legend (nor any other text or box) drawn inside a plot's
+data rectangle, and no horizontal overflow at 1280 px. The fleet table must
+come first and link every locomotive to a page that exists in REPORT_DIR. `overflow` only runs the overflow check (exit status 1 when the page overflows), `legends` only the
+legend check on a page or an SVG file (exit status 1 when something covers a plot's data).
+
+Legends: a plot drawn by plotters marks its data rectangle with its mesh, faint (opacity < 0.5)
+grid lines across it: the vertical ones span the rectangle's height, the horizontal ones its
+width (one rectangle per panel). Axis text and the legend row above the plot lie outside it; a
+text or a box whose anchor lies inside it, like plotters' own series-label box, covers data.
+Plots without such a mesh (the fleet pages' hand-drawn SVG) are not looked at.
 
 Overflow: SCROLL.png is a 1280 px wide screenshot taken with scrollbars. When the page is wider
 than the window, Chromium draws a horizontal scrollbar along the bottom of the viewport (a band of
@@ -32,6 +41,8 @@ MIN_TABLES = {"demo": 15, "locomotive": 2}
 MIN_FLEET_ROWS = 5
 MIN_PLOT_TEXT_PX = 11.0
 MARKS = {"path", "polyline", "polygon", "circle", "line", "rect", "text"}
+# Inset of a data rectangle, px: a text or box anchored this close to its edge is on the frame.
+DATA_INSET_PX = 3.0
 
 
 class Page(HTMLParser):
@@ -41,6 +52,7 @@ class Page(HTMLParser):
         self.sections = {}         # id -> count of content elements / text
         self.section = None
         self.svgs = []             # per svg: [drawn marks, section, smallest font size]
+        self.shapes = []           # per svg: [(tag, attributes, text)] of its lines, texts and boxes
         self.tables = []           # per table: [body rows, filled cells, section]
         self.links = []            # (section, href)
         self.in_td = False
@@ -64,8 +76,11 @@ class Page(HTMLParser):
         in_svg = any(t == "svg" for t in self.stack)
         if tag == "svg" and not in_svg:
             self.svgs.append([0, self.section, float("inf")])
+            self.shapes.append([])
         elif tag in MARKS and in_svg and self.svgs:
             self.svgs[-1][0] += 1
+            if tag in ("line", "text", "rect"):
+                self.shapes[-1].append([tag, a, ""])
         if (tag == "svg" or in_svg) and self.svgs and a.get("font-size"):
             m = re.match(r"\s*([0-9.]+)", a["font-size"])
             if m:
@@ -94,6 +109,52 @@ class Page(HTMLParser):
     def handle_data(self, data):
         if self.in_td and data.strip() and self.tables:
             self.tables[-1][1] += 1
+        if self.stack[-1:] == ["text"] and self.shapes and self.shapes[-1] and self.shapes[-1][-1][0] == "text":
+            self.shapes[-1][-1][2] += data
+
+
+def _num(a, key):
+    try:
+        return float(re.match(r"\s*(-?[0-9.]+)", a.get(key, "")).group(1))
+    except (AttributeError, ValueError):
+        return None
+
+
+def data_rectangles(shapes):
+    """The data rectangles (x0, y0, x1, y1) of one plotters plot, one per panel, from its mesh."""
+    vertical, horizontal = {}, []
+    for tag, a, _ in shapes:
+        opacity = _num(a, "opacity")
+        if tag != "line" or opacity is None or opacity >= 0.5:
+            continue
+        x1, y1, x2, y2 = (_num(a, k) for k in ("x1", "y1", "x2", "y2"))
+        if None in (x1, y1, x2, y2):
+            continue
+        if x1 == x2 and y1 != y2:
+            vertical.setdefault((min(y1, y2), max(y1, y2)), []).append(x1)
+        elif y1 == y2 and x1 != x2:
+            horizontal.append((y1, min(x1, x2), max(x1, x2)))
+    rects = []
+    for (y0, y1), xs in vertical.items():
+        spans = [(a, b) for y, a, b in horizontal if y0 <= y <= y1]
+        x0 = min([a for a, _ in spans] + xs)
+        x1 = max([b for _, b in spans] + xs)
+        rects.append((x0, y0, x1, y1))
+    return rects
+
+
+def covering_data(shapes):
+    """Texts and boxes of one plot anchored inside one of its data rectangles."""
+    found = []
+    for x0, y0, x1, y1 in data_rectangles(shapes):
+        inside = lambda x, y: x0 + DATA_INSET_PX < x < x1 - DATA_INSET_PX and y0 + DATA_INSET_PX < y < y1 - DATA_INSET_PX
+        for tag, a, text in shapes:
+            x, y = _num(a, "x"), _num(a, "y")
+            if tag in ("text", "rect") and x is not None and y is not None and inside(x, y):
+                what = f"text '{text.strip()[:30]}'" if tag == "text" else "box"
+                found.append(f"{what} at ({x:g}, {y:g}) inside the data rectangle "
+                             f"({x0:g}, {y0:g})-({x1:g}, {y1:g})")
+    return found
 
 
 def read_png(path):
@@ -175,6 +236,15 @@ def main():
         over, why = horizontal_scrollbar(sys.argv[2])
         print(f"overflow: {'yes' if over else 'no'} ({why})")
         sys.exit(1 if over else 0)
+    if kind == "legends":
+        p = Page()
+        p.feed(open(sys.argv[2], encoding="utf-8").read())
+        found = [f"plot {i + 1}: {f}" for i, shapes in enumerate(p.shapes) for f in covering_data(shapes)]
+        panels = sum(len(data_rectangles(shapes)) for shapes in p.shapes)
+        print(f"legends: {len(p.shapes)} plots, {panels} data rectangles, {len(found)} texts or boxes over data")
+        if found:
+            print("FAILED:\n  " + "\n  ".join(found[:10]))
+        sys.exit(1 if found else 0)
     dom_path, shot_path, scroll_path, report_dir = sys.argv[2:6]
     p = Page()
     p.feed(open(dom_path, encoding="utf-8").read())
@@ -194,6 +264,10 @@ def main():
             errors.append(f"plot {i + 1} draws nothing ({marks} marks)")
         if font < MIN_PLOT_TEXT_PX:
             errors.append(f"plot {i + 1} (section {section}) has {font} px text, below {MIN_PLOT_TEXT_PX}")
+    for i, shapes in enumerate(p.shapes):
+        for f in covering_data(shapes)[:3]:
+            errors.append(f"plot {i + 1} (section {p.svgs[i][1]}): {f} (a legend over the data?)")
+    panels = sum(len(data_rectangles(shapes)) for shapes in p.shapes)
     for i, (rows, cells, _) in enumerate(p.tables):
         if rows == 0 or cells == 0:
             errors.append(f"table {i + 1} has no filled rows ({rows} rows, {cells} filled cells)")
@@ -224,7 +298,7 @@ def main():
     print(f"{kind} page {dom_path}: sections {len(p.sections)}: {', '.join(str(s) for s in p.sections)}")
     print(f"plots {len(p.svgs)} (marks per plot: min {min((m for m, _, _ in p.svgs), default=0)}), tables "
           f"{len(p.tables)} ({sum(r for r, _, _ in p.tables)} body rows), links {len(local)}, screenshot {size} "
-          f"bytes, overflow at 1280 px: {'yes' if over else 'no'} ({why})")
+          f"bytes, plot data rectangles checked for legends {panels}, overflow at 1280 px: {'yes' if over else 'no'} ({why})")
     if errors:
         print("FAILED:\n  " + "\n  ".join(errors))
         sys.exit(1)

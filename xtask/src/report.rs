@@ -6,19 +6,23 @@
 //! takes a screenshot, and takes a second screenshot at 1280 px width *with* scrollbars:
 //! `xtask/checks/report_dom_check.py` (standard library only) then checks the rendered page —
 //! every required section present and non-empty, every plot drawing marks with its text at 11 px
-//! or more, every table filled, the fleet table linking pages that exist, no script and no
+//! or more and no legend (no text, no box) inside its data rectangle, every table filled, the fleet table linking pages that exist, no script and no
 //! external resource, a screenshot that is not blank, and no horizontal overflow at 1280 px.
 //!
 //! Overflow without a script: when a page is wider than the window, Chromium draws a horizontal
 //! scrollbar along the bottom of the viewport, whatever the height of the page; the check looks
 //! for it in the screenshot. That the detector works is checked on every run: the same check on
-//! a locomotive page with a deliberately too-wide table must fail.
+//! a locomotive page with a deliberately too-wide table must fail. Likewise the legend check must
+//! fail on `xtask/checks/fixtures/legend_inside_plot.svg`, a plotters plot with its legend box
+//! inside the data area (as the demo's plots drew it before the legends moved above the plots).
 
 use crate::util::{cargo, have, output, run, target_dir, Result};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 const CHECK: &str = "xtask/checks/report_dom_check.py";
+/// A plotters plot with its legend inside the data area: the legend check must flag it.
+const LEGEND_INSIDE: &str = "xtask/checks/fixtures/legend_inside_plot.svg";
 
 struct Browser {
     program: &'static str,
@@ -131,6 +135,14 @@ pub fn check() -> Result<()> {
         ));
     }
     println!("report-check: the overflow check flags a too-wide page ({})", probe.display());
+    let o = output(Command::new("python3").arg(CHECK).arg("legends").arg(LEGEND_INSIDE))?;
+    if o.status.success() {
+        return Err(format!(
+            "the legend check did not see the legend inside the plot of {LEGEND_INSIDE}:\n{}",
+            String::from_utf8_lossy(&o.stdout)
+        ));
+    }
+    println!("report-check: the legend check flags a legend inside the data area ({LEGEND_INSIDE})");
 
     let index = out.join("index.html");
     let [dom, shot, scroll] = browser.capture(&index)?;

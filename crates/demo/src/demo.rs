@@ -48,7 +48,7 @@ use pbm_lab::replay::{replay_trace, summarise};
 use pbm_ml::evaluate::{accuracy_vs_time, score_all, stable_by, Score};
 use pbm_ml::nn::Mlp;
 use pbm_ml::train::{dataset_features, features_from_adc, train_all, Kind, TraceFeatures, Trained, SNAPSHOT_TIMES_S};
-use pbm_report::chart::{write_line_chart, ChartLabels, Series, PALETTE};
+use pbm_report::chart::{write_line_chart, ChartLabels, Series, OKABE_ITO};
 use pbm_report::report_html::{check, render, utc_text, Block, Cell, Page, Section, Table};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
@@ -967,8 +967,8 @@ fn section_early(r: &DemoResults, svg_dir: &Path) -> Result<Section> {
         "accuracy_vs_time",
         ChartLabels { title: "ours: test accuracy vs time since release command", x: "t, s", y: "accuracy, %" },
         &[
-            Series { label: "ours f64", points: f, color: PALETTE[0] },
-            Series { label: "ours int8", points: q, color: PALETTE[1] },
+            Series { label: "ours f64", points: f, color: OKABE_ITO[0] },
+            Series { label: "ours int8", points: q, color: OKABE_ITO[1] },
         ],
     )?;
     s.push(Block::Figure {
@@ -991,11 +991,11 @@ fn section_early(r: &DemoResults, svg_dir: &Path) -> Result<Section> {
         "reliability",
         ChartLabels { title: "reliability of the confidence sent (int8)", x: "confidence, %", y: "accuracy, %" },
         &[
-            Series { label: "perfectly calibrated", points: vec![(0.0, 0.0), (100.0, 100.0)], color: PALETTE[2] },
+            Series { label: "perfectly calibrated", points: vec![(0.0, 0.0), (100.0, 100.0)], color: OKABE_ITO[2] },
             Series {
                 label: "observed",
                 points: used.iter().map(|b| (100.0 * b.confidence, 100.0 * b.accuracy)).collect(),
-                color: PALETTE[1],
+                color: OKABE_ITO[1],
             },
         ],
     )?;
@@ -1036,8 +1036,8 @@ fn section_release(r: &DemoResults, svg_dir: &Path) -> Result<Section> {
             &format!("release_{}", c.label),
             ChartLabels { title: &title, x: "t, s", y: "pressure, bar g" },
             &[
-                Series { label: "measured", points: m, color: PALETTE[0] },
-                Series { label: "nominal twin", points: tw, color: PALETTE[1] },
+                Series { label: "measured", points: m, color: OKABE_ITO[0] },
+                Series { label: "nominal twin", points: tw, color: OKABE_ITO[1] },
             ],
         )?;
         let nmse = c.nmse_pct.map_or_else(|| "n/a".to_owned(), |v| format!("{v:.2} %"));

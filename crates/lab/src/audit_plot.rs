@@ -4,7 +4,7 @@ use crate::audit::{audit, load_dataset, AuditData, AuditOptions, AuditOutcome, A
 use anyhow::Context as _;
 use anyhow::{anyhow, Result};
 use pbm_io::error::Skipped;
-use pbm_report::chart::draw_labelled_lines;
+use pbm_report::chart::{draw_lines, line_legend, title_and_legend, LegendEntry, Swatch, OKABE_ITO};
 use plotters::prelude::*;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -17,6 +17,12 @@ fn points(y: &[f64]) -> Vec<(f64, f64)> {
     y.iter().enumerate().filter(|(_, v)| v.is_finite()).map(|(i, &v)| (i as f64 * 0.01, v)).collect()
 }
 
+/// Okabe–Ito colours of the audit plots: measurement, base twin, extended twin, phase marks.
+const MEASURED: RGBColor = OKABE_ITO[7];
+const BASE: RGBColor = OKABE_ITO[1];
+const EXTENDED: RGBColor = OKABE_ITO[0];
+const MARK: RGBColor = OKABE_ITO[2];
+
 fn e<E: std::fmt::Display>(err: E) -> anyhow::Error {
     anyhow!("plot: {err}")
 }
@@ -28,23 +34,21 @@ pub fn curves_svg(out: &AuditOutcome, c: &CurveSet) -> Result<String> {
         let root = SVGBackend::with_string(&mut buf, (1000, 480)).into_drawing_area();
         root.fill(&WHITE).map_err(e)?;
         let t_end = c.measured.len() as f64 * 0.01;
-        let mut chart = ChartBuilder::on(&root)
-            .caption(format!("measured vs base vs extended ({})", out.cause), ("sans-serif", 18))
+        let lines = [
+            ("measured (mean)", points(&c.measured), MEASURED),
+            ("base twin", points(&c.base), BASE),
+            ("extended twin", points(&c.extended), EXTENDED),
+        ];
+        let plot_area =
+            title_and_legend(&root, &format!("measured vs base vs extended ({})", out.cause), &line_legend(&lines))?;
+        let mut chart = ChartBuilder::on(&plot_area)
             .margin(10)
-            .x_label_area_size(30)
+            .x_label_area_size(40)
             .y_label_area_size(50)
             .build_cartesian_2d(0.0..t_end, span(&[&c.measured, &c.base, &c.extended], 0.5))
             .map_err(e)?;
         chart.configure_mesh().x_desc("t, s").y_desc("pressure, bar g").draw().map_err(e)?;
-        draw_labelled_lines(
-            &mut chart,
-            [
-                ("measured (mean)", points(&c.measured), BLACK),
-                ("base twin", points(&c.base), RED),
-                ("extended twin", points(&c.extended), BLUE),
-            ],
-            SeriesLabelPosition::LowerRight,
-        )?;
+        draw_lines(&mut chart, &lines)?;
         root.present().map_err(e)?;
     }
     Ok(buf)
@@ -60,10 +64,13 @@ pub fn residual_svg(out: &AuditOutcome, c: &CurveSet) -> Result<String> {
         root.fill(&WHITE).map_err(e)?;
         let t_end = c.measured.len() as f64 * 0.01;
         let yr = span(&[&rb, &re], 0.02);
-        let mut chart = ChartBuilder::on(&root)
-            .caption(format!("residual measured − twin (cause: {})", out.cause), ("sans-serif", 18))
+        let lines = [("base", points(&rb), BASE), ("extended", points(&re), EXTENDED)];
+        let mut legend = line_legend(&lines);
+        legend.push(LegendEntry { label: "phase boundary", color: MARK, swatch: Swatch::Line });
+        let plot_area = title_and_legend(&root, &format!("residual measured − twin (cause: {})", out.cause), &legend)?;
+        let mut chart = ChartBuilder::on(&plot_area)
             .margin(10)
-            .x_label_area_size(30)
+            .x_label_area_size(40)
             .y_label_area_size(60)
             .build_cartesian_2d(0.0..t_end, yr.clone())
             .map_err(e)?;
@@ -74,13 +81,9 @@ pub fn residual_svg(out: &AuditOutcome, c: &CurveSet) -> Result<String> {
         let end_stop = c.base_travel.iter().position(|&x| stroke > 0.0 && x >= stroke - 1e-3);
         for idx in [first_move, end_stop].into_iter().flatten() {
             let t = idx as f64 * 0.01;
-            chart.draw_series(LineSeries::new(vec![(t, yr.start), (t, yr.end)], GREEN.mix(0.6))).map_err(e)?;
+            chart.draw_series(LineSeries::new(vec![(t, yr.start), (t, yr.end)], MARK.stroke_width(2))).map_err(e)?;
         }
-        draw_labelled_lines(
-            &mut chart,
-            [("base", points(&rb), RED), ("extended", points(&re), BLUE)],
-            SeriesLabelPosition::MiddleRight,
-        )?;
+        draw_lines(&mut chart, &lines)?;
         root.present().map_err(e)?;
     }
     Ok(buf)
@@ -92,10 +95,15 @@ pub fn acf_svg(out: &AuditOutcome) -> Result<String> {
     {
         let root = SVGBackend::with_string(&mut buf, (700, 360)).into_drawing_area();
         root.fill(&WHITE).map_err(e)?;
-        let mut chart = ChartBuilder::on(&root)
-            .caption("residual autocorrelation (lag in 50 ms steps)", ("sans-serif", 16))
+        let legend = [
+            LegendEntry { label: "base", color: BASE, swatch: Swatch::Line },
+            LegendEntry { label: "extended", color: EXTENDED, swatch: Swatch::Line },
+            LegendEntry { label: "±1.96/√n", color: MARK, swatch: Swatch::Line },
+        ];
+        let plot_area = title_and_legend(&root, "residual autocorrelation (lag in 50 ms steps)", &legend)?;
+        let mut chart = ChartBuilder::on(&plot_area)
             .margin(10)
-            .x_label_area_size(30)
+            .x_label_area_size(40)
             .y_label_area_size(40)
             .build_cartesian_2d(0.0..21.0, -1.0..1.0)
             .map_err(e)?;
@@ -103,9 +111,9 @@ pub fn acf_svg(out: &AuditOutcome) -> Result<String> {
         let n: usize = out.curves.iter().map(|c| c.measured.len() / 5).sum();
         let band = 1.96 / (n.max(1) as f64).sqrt();
         for b in [band, -band] {
-            chart.draw_series(LineSeries::new(vec![(0.0, b), (21.0, b)], GREEN)).map_err(e)?;
+            chart.draw_series(LineSeries::new(vec![(0.0, b), (21.0, b)], MARK.stroke_width(2))).map_err(e)?;
         }
-        for (acf, color, dx) in [(&out.diagnostics.acf, RED, -0.15), (&out.chosen_diagnostics.acf, BLUE, 0.15)] {
+        for (acf, color, dx) in [(&out.diagnostics.acf, BASE, -0.15), (&out.chosen_diagnostics.acf, EXTENDED, 0.15)] {
             chart
                 .draw_series(acf.iter().enumerate().map(|(k, &r)| {
                     let x = (k + 1) as f64 + dx;
@@ -138,7 +146,7 @@ pub fn missing_flow_svg(out: &AuditOutcome, i: usize) -> Result<String> {
             let mut chart = ChartBuilder::on(&left)
                 .caption("unmodelled air flow vs time", ("sans-serif", 16))
                 .margin(10)
-                .x_label_area_size(30)
+                .x_label_area_size(40)
                 .y_label_area_size(55)
                 .build_cartesian_2d(0.0..t_end, yr.clone())
                 .map_err(e)?;
@@ -160,7 +168,7 @@ pub fn missing_flow_svg(out: &AuditOutcome, i: usize) -> Result<String> {
             let mut chart = ChartBuilder::on(&right)
                 .caption("… vs measured pressure", ("sans-serif", 16))
                 .margin(10)
-                .x_label_area_size(30)
+                .x_label_area_size(40)
                 .y_label_area_size(45)
                 .build_cartesian_2d(-0.2..p_hi, yr)
                 .map_err(e)?;

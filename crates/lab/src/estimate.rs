@@ -428,27 +428,30 @@ pub fn scatter_svg(path: &Path, results: &[CaseResult], x: Param, y: Param) -> R
     let err = |e: &dyn std::fmt::Display| anyhow::anyhow!("plotting {}: {e}", path.display());
     let root = SVGBackend::new(path, (720, 540)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(format!("RLS estimates: {} vs {}", y.name(), x.name()), ("sans-serif", 20))
+    let present: Vec<(usize, &FaultClass)> =
+        FaultClass::ALL.iter().enumerate().filter(|(ci, _)| points.iter().any(|p| p.2 == *ci)).collect();
+    let legend: Vec<pbm_report::chart::LegendEntry<'_>> = present
+        .iter()
+        .map(|&(ci, class)| pbm_report::chart::LegendEntry {
+            label: class.label(),
+            color: CLASS_COLOURS[ci],
+            swatch: pbm_report::chart::Swatch::Dot,
+        })
+        .collect();
+    let title = format!("RLS estimates: {} vs {}", y.name(), x.name());
+    let plot_area = pbm_report::chart::title_and_legend(&root, &title, &legend)?;
+    let mut chart = ChartBuilder::on(&plot_area)
         .margin(12)
         .x_label_area_size(40)
         .y_label_area_size(56)
         .build_cartesian_2d(xr, yr)
         .map_err(|e| err(&e))?;
     chart.configure_mesh().x_desc(x.name()).y_desc(y.name()).draw().map_err(|e| err(&e))?;
-    for (ci, class) in FaultClass::ALL.iter().enumerate() {
+    for &(ci, _) in &present {
         let colour = CLASS_COLOURS[ci];
-        let pts: Vec<(f64, f64)> = points.iter().filter(|p| p.2 == ci).map(|p| (p.0, p.1)).collect();
-        if pts.is_empty() {
-            continue;
-        }
-        chart
-            .draw_series(pts.into_iter().map(|p| Circle::new(p, 3, colour.filled())))
-            .map_err(|e| err(&e))?
-            .label(class.label())
-            .legend(move |(x, y)| Circle::new((x, y), 4, colour.filled()));
+        let pts = points.iter().filter(|p| p.2 == ci).map(|p| Circle::new((p.0, p.1), 3, colour.filled()));
+        chart.draw_series(pts).map_err(|e| err(&e))?;
     }
-    chart.configure_series_labels().background_style(WHITE.mix(0.8)).border_style(BLACK).draw().map_err(|e| err(&e))?;
     root.present().map_err(|e| err(&e))?;
     Ok(points.len())
 }

@@ -1308,6 +1308,7 @@ fn plot_err<E: std::fmt::Display>(err: E) -> anyhow::Error {
 
 /// Measured TP3 vs the adiabatic base and the extended model over the whole extract (SVG text).
 pub fn curves_svg(rows: &[MetroRow], out: &MetroOutcome) -> Result<String> {
+    use pbm_report::chart::{draw_lines, line_legend, title_and_legend, OKABE_ITO};
     use plotters::prelude::*;
     let e = plot_err;
     let mut buf = String::new();
@@ -1315,31 +1316,26 @@ pub fn curves_svg(rows: &[MetroRow], out: &MetroOutcome) -> Result<String> {
         let root = SVGBackend::with_string(&mut buf, (1100, 520)).into_drawing_area();
         root.fill(&WHITE).map_err(e)?;
         let t_end = rows.last().map_or(1.0, |r| r.t_s / 60.0);
-        let mut chart = ChartBuilder::on(&root)
-            .caption(
-                format!(
-                    "MetroPT-3 reservoir pressure: measured, adiabatic, with {}",
-                    out.cause.replace('_', " ").replace('+', " + ")
-                ),
-                ("sans-serif", 18),
-            )
+        let series = |y: &[f64]| rows.iter().zip(y).map(|(r, &v)| (r.t_s / 60.0, v)).collect::<Vec<_>>();
+        let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
+        let lines = [
+            ("measured", series(&measured), OKABE_ITO[7]),
+            ("adiabatic base", series(&out.base.curve), OKABE_ITO[1]),
+            ("extended", series(&out.chosen.curve), OKABE_ITO[0]),
+        ];
+        let title = format!(
+            "MetroPT-3 reservoir pressure: measured, adiabatic, with {}",
+            out.cause.replace('_', " ").replace('+', " + ")
+        );
+        let plot_area = title_and_legend(&root, &title, &line_legend(&lines))?;
+        let mut chart = ChartBuilder::on(&plot_area)
             .margin(10)
-            .x_label_area_size(30)
+            .x_label_area_size(40)
             .y_label_area_size(50)
             .build_cartesian_2d(0.0..t_end, 7.8..10.4)
             .map_err(e)?;
         chart.configure_mesh().x_desc("t, min").y_desc("TP3, bar").draw().map_err(e)?;
-        let series = |y: &[f64]| rows.iter().zip(y).map(|(r, &v)| (r.t_s / 60.0, v)).collect::<Vec<_>>();
-        let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
-        pbm_report::chart::draw_labelled_lines(
-            &mut chart,
-            [
-                ("measured", series(&measured), BLACK),
-                ("adiabatic base", series(&out.base.curve), RED),
-                ("extended", series(&out.chosen.curve), BLUE),
-            ],
-            SeriesLabelPosition::MiddleRight,
-        )?;
+        draw_lines(&mut chart, &lines)?;
         root.present().map_err(e)?;
     }
     Ok(buf)
@@ -1347,6 +1343,7 @@ pub fn curves_svg(rows: &[MetroRow], out: &MetroOutcome) -> Result<String> {
 
 /// Residual (measured − model) of the base and the extended model against time (SVG text).
 pub fn residual_svg(rows: &[MetroRow], out: &MetroOutcome) -> Result<String> {
+    use pbm_report::chart::{draw_lines, line_legend, title_and_legend, OKABE_ITO};
     use plotters::prelude::*;
     let e = plot_err;
     let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
@@ -1358,20 +1355,17 @@ pub fn residual_svg(rows: &[MetroRow], out: &MetroOutcome) -> Result<String> {
         let root = SVGBackend::with_string(&mut buf, (1100, 400)).into_drawing_area();
         root.fill(&WHITE).map_err(e)?;
         let t_end = rows.last().map_or(1.0, |r| r.t_s / 60.0);
-        let mut chart = ChartBuilder::on(&root)
-            .caption("MetroPT-3 TP3 residual, measured − model", ("sans-serif", 18))
+        let series = |y: &[f64]| rows.iter().zip(y).map(|(r, &v)| (r.t_s / 60.0, v)).collect::<Vec<_>>();
+        let lines = [("adiabatic base", series(&rb), OKABE_ITO[1]), ("extended", series(&re), OKABE_ITO[0])];
+        let plot_area = title_and_legend(&root, "MetroPT-3 TP3 residual, measured − model", &line_legend(&lines))?;
+        let mut chart = ChartBuilder::on(&plot_area)
             .margin(10)
-            .x_label_area_size(30)
+            .x_label_area_size(40)
             .y_label_area_size(60)
             .build_cartesian_2d(0.0..t_end, -lim..lim)
             .map_err(e)?;
         chart.configure_mesh().x_desc("t, min").y_desc("residual, bar").draw().map_err(e)?;
-        let series = |y: &[f64]| rows.iter().zip(y).map(|(r, &v)| (r.t_s / 60.0, v)).collect::<Vec<_>>();
-        pbm_report::chart::draw_labelled_lines(
-            &mut chart,
-            [("adiabatic base", series(&rb), RED), ("extended", series(&re), BLUE)],
-            SeriesLabelPosition::MiddleRight,
-        )?;
+        draw_lines(&mut chart, &lines)?;
         root.present().map_err(e)?;
     }
     Ok(buf)

@@ -160,7 +160,7 @@ pub fn run(a: &SimulateOptions) -> anyhow::Result<()> {
 
 /// Writes an SVG of one release: chamber pressure from both engines and the piston travel.
 pub fn write_release_svg(path: &std::path::Path, params: &TwinParams, duration_s: f64) -> anyhow::Result<()> {
-    use pbm_report::chart::{write_line_chart, ChartLabels, Series, PALETTE};
+    use pbm_report::chart::{write_line_chart, ChartLabels, Series, OKABE_ITO};
     let invalid = |e: ParamError| anyhow::anyhow!("invalid parameters: {e}");
     let fixed = simulate(Engine::Fixed, params, duration_s).map_err(invalid)?;
     let reference = simulate(Engine::F64, params, duration_s).map_err(invalid)?;
@@ -168,17 +168,17 @@ pub fn write_release_svg(path: &std::path::Path, params: &TwinParams, duration_s
         Series {
             label: "pressure, f64 reference (bar g)",
             points: reference.iter().map(|s| (s.t_s, s.p_bar)).collect(),
-            color: PALETTE[7],
+            color: OKABE_ITO[7],
         },
         Series {
             label: "pressure, fixed-point twin (bar g)",
             points: fixed.iter().map(|s| (s.t_s, s.p_bar)).collect(),
-            color: PALETTE[0],
+            color: OKABE_ITO[0],
         },
         Series {
             label: "piston travel, fixed-point twin (cm)",
             points: fixed.iter().map(|s| (s.t_s, s.x_mm / 10.0)).collect(),
-            color: PALETTE[1],
+            color: OKABE_ITO[1],
         },
     ];
     let title = format!(

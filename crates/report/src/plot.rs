@@ -1,8 +1,13 @@
 //! SVG plots of a replayed trace: measured vs twin pressure, and the residual.
 
+use crate::chart::{title_and_legend, LegendEntry, Swatch, OKABE_ITO};
 use anyhow::{anyhow, Result};
 use plotters::prelude::*;
 use std::path::Path;
+
+/// Okabe–Ito colours of the measured and the twin pressure.
+const MEASURED: RGBColor = OKABE_ITO[0];
+const TWIN: RGBColor = OKABE_ITO[1];
 
 /// The series of one replay plot (all slices of equal length; NaN marks a missing point,
 /// e.g. a sensor-fault sample, and breaks the line).
@@ -54,49 +59,40 @@ fn runs<'a>(t: &'a [f64], y: &'a [f64]) -> Vec<Vec<(f64, f64)>> {
 /// Writes the plot as SVG to `path`.
 pub fn write_replay_svg(path: &Path, p: &ReplayPlot<'_>) -> Result<()> {
     let err = |e: &dyn std::fmt::Display| anyhow!("plot {}: {e}", path.display());
-    let root = SVGBackend::new(path, (1000, 720)).into_drawing_area();
+    let root = SVGBackend::new(path, (1000, 740)).into_drawing_area();
     root.fill(&WHITE).map_err(|e| err(&e))?;
-    let (upper, lower) = root.split_vertically(440);
+    let (upper, lower) = root.split_vertically(460);
     let t_range = range(p.t_s, 1.0);
     let t_range = t_range.start.max(0.0)..t_range.end;
 
+    let legend = [
+        LegendEntry { label: "measured", color: MEASURED, swatch: Swatch::Line },
+        LegendEntry { label: "twin", color: TWIN, swatch: Swatch::Line },
+    ];
+    let upper = title_and_legend(&upper, p.title, &legend)?;
     let mut chart = ChartBuilder::on(&upper)
-        .caption(p.title, ("sans-serif", 18))
         .margin(10)
-        .x_label_area_size(30)
+        .x_label_area_size(40)
         .y_label_area_size(50)
         .build_cartesian_2d(t_range.clone(), range(&[p.measured_bar, p.twin_bar].concat(), 0.5))
         .map_err(|e| err(&e))?;
     chart.configure_mesh().x_desc("t, s").y_desc("pressure, bar g").draw().map_err(|e| err(&e))?;
-    for (i, run) in runs(p.t_s, p.measured_bar).into_iter().enumerate() {
-        let s = chart.draw_series(LineSeries::new(run, BLUE)).map_err(|e| err(&e))?;
-        if i == 0 {
-            s.label("measured").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLUE));
-        }
+    for run in runs(p.t_s, p.measured_bar) {
+        chart.draw_series(LineSeries::new(run, MEASURED.stroke_width(2))).map_err(|e| err(&e))?;
     }
-    for (i, run) in runs(p.t_s, p.twin_bar).into_iter().enumerate() {
-        let s = chart.draw_series(LineSeries::new(run, RED)).map_err(|e| err(&e))?;
-        if i == 0 {
-            s.label("twin").legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED));
-        }
+    for run in runs(p.t_s, p.twin_bar) {
+        chart.draw_series(LineSeries::new(run, TWIN.stroke_width(2))).map_err(|e| err(&e))?;
     }
-    chart
-        .configure_series_labels()
-        .position(SeriesLabelPosition::LowerRight)
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| err(&e))?;
 
     let mut chart = ChartBuilder::on(&lower)
         .margin(10)
-        .x_label_area_size(30)
+        .x_label_area_size(40)
         .y_label_area_size(50)
         .build_cartesian_2d(t_range, range(p.residual_bar, 0.05))
         .map_err(|e| err(&e))?;
     chart.configure_mesh().x_desc("t, s").y_desc("residual, bar").draw().map_err(|e| err(&e))?;
     for run in runs(p.t_s, p.residual_bar) {
-        chart.draw_series(LineSeries::new(run, BLACK)).map_err(|e| err(&e))?;
+        chart.draw_series(LineSeries::new(run, OKABE_ITO[7])).map_err(|e| err(&e))?;
     }
     root.present().map_err(|e| err(&e))?;
     Ok(())
