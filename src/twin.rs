@@ -1322,6 +1322,92 @@ pub fn orifice_dp(from: PressureQ24, to: PressureQ24, c: Q<i64, 32>) -> Q<i64, 4
     choked.mul_floor::<32, 40>(c) * sign
 }
 
+/// The parameter sets of the extended twin's bit-exactness digest
+/// (`extended_path_equals_the_reference_bit_for_bit`): 300 cases, the first 200 with one
+/// mechanism each (cycling through the ten) at a drawn magnitude, the rest with several, every
+/// third case with drawn base parameters. One generator, so the digest test and the check of
+/// the same runs against the `f64` reference (`pbm-lab`'s `ext_vs_reference` example) cannot
+/// drift apart. Not part of the monitor: a test fixture that must be reachable from both.
+#[doc(hidden)]
+#[cfg(feature = "extensions")]
+pub struct DigestCases {
+    seed: u64,
+    case: usize,
+}
+
+#[cfg(feature = "extensions")]
+impl Default for DigestCases {
+    fn default() -> Self {
+        Self { seed: 0x9e37_79b9_7f4a_7c15, case: 0 }
+    }
+}
+
+#[cfg(feature = "extensions")]
+impl DigestCases {
+    /// Number of cases.
+    pub const CASES: usize = 300;
+
+    /// The next number of the stream, uniform in [0, 1) (xorshift64; the valve switching of a
+    /// run draws from the same stream, right after its parameters).
+    pub fn unit(&mut self) -> f64 {
+        self.seed ^= self.seed << 13;
+        self.seed ^= self.seed >> 7;
+        self.seed ^= self.seed << 17;
+        (self.seed >> 11) as f64 / (1u64 << 53) as f64
+    }
+
+    /// The next case: its number and parameters (which the twin may reject).
+    pub fn next_params(&mut self) -> Option<(usize, TwinParams)> {
+        let case = self.case;
+        if case >= Self::CASES {
+            return None;
+        }
+        self.case += 1;
+        let mut p = TwinParams::nominal();
+        if case % 3 == 2 {
+            let mut r = |lo: f64, hi: f64| lo + (hi - lo) * self.unit();
+            p = p.with_orifice_mm(r(0.3, 4.0));
+            p.supply = crate::units::BarG(r(0.0, 15.0));
+            p.dead_volume_m3 = r(0.2e-3, 50e-3);
+            p.piston_area_m2 = r(1e-4, 0.1);
+            p.stroke = Meters(r(1e-3, 0.4));
+            p.mass_kg = r(0.5, 500.0);
+            p.preload_n = r(0.0, 60e3);
+            p.spring_rate_n_per_m = r(0.0, 4e6);
+            p.coulomb_n = r(1.0, 1e4);
+            p.static_n = r(p.coulomb_n, 1e4);
+        }
+        if case % 5 == 1 {
+            p = p.with_leak_mm(self.unit());
+        }
+        let ms = Mechanism::ALL;
+        if case < 200 {
+            // One mechanism, cycling through the ten.
+            let m = ms[case % ms.len()];
+            let (lo, hi) = m.descriptor().brake.valid;
+            p.ext[m] = lo + (hi - lo) * self.unit();
+        } else {
+            for m in ms {
+                if self.unit() < 0.35 {
+                    let (lo, hi) = m.descriptor().brake.valid;
+                    p.ext[m] = lo + (hi - lo) * self.unit();
+                }
+            }
+        }
+        Some((case, p))
+    }
+
+    /// Samples of a run (shorter with regulator droop: it was a bisection per substep when the
+    /// digest was made).
+    pub fn samples(p: &TwinParams) -> usize {
+        if p.ext.is_on(RegulatorDroop) {
+            1500
+        } else {
+            6000
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1503,57 +1589,18 @@ mod tests {
                 }
             }
         }
-        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut unit = move || {
-            seed ^= seed << 13;
-            seed ^= seed >> 7;
-            seed ^= seed << 17;
-            (seed >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut cases = DigestCases::default();
         let mut runs = 0;
         let mut digest = Fnv(0xcbf2_9ce4_8422_2325);
-        for case in 0..300 {
-            let mut p = TwinParams::nominal();
-            if case % 3 == 2 {
-                let mut r = |lo: f64, hi: f64| lo + (hi - lo) * unit();
-                p = p.with_orifice_mm(r(0.3, 4.0));
-                p.supply = crate::units::BarG(r(0.0, 15.0));
-                p.dead_volume_m3 = r(0.2e-3, 50e-3);
-                p.piston_area_m2 = r(1e-4, 0.1);
-                p.stroke = Meters(r(1e-3, 0.4));
-                p.mass_kg = r(0.5, 500.0);
-                p.preload_n = r(0.0, 60e3);
-                p.spring_rate_n_per_m = r(0.0, 4e6);
-                p.coulomb_n = r(1.0, 1e4);
-                p.static_n = r(p.coulomb_n, 1e4);
-            }
-            if case % 5 == 1 {
-                p = p.with_leak_mm(unit());
-            }
-            let ms = crate::mechanism::Mechanism::ALL;
-            if case < 200 {
-                // One mechanism, cycling through the ten.
-                let m = ms[case % ms.len()];
-                let (lo, hi) = m.descriptor().brake.valid;
-                p.ext[m] = lo + (hi - lo) * unit();
-            } else {
-                for m in ms {
-                    if unit() < 0.35 {
-                        let (lo, hi) = m.descriptor().brake.valid;
-                        p.ext[m] = lo + (hi - lo) * unit();
-                    }
-                }
-            }
+        while let Some((_, p)) = cases.next_params() {
             let Ok(mut new) = Twin::new(&p) else { continue };
             if !new.coeffs.ext.active {
                 continue;
             }
             runs += 1;
-            // Shorter runs with regulator droop (a bisection per substep when the digest was made).
-            let samples = if p.ext.is_on(RegulatorDroop) { 1500 } else { 6000 };
             let mut open = true;
-            for i in 0..samples {
-                if i > 0 && unit() < 0.002 {
+            for i in 0..DigestCases::samples(&p) {
+                if i > 0 && cases.unit() < 0.002 {
                     open = !open;
                 }
                 let (a, held_a) = new.update_extended_with(open, true);

@@ -9,60 +9,24 @@
 //! `PBM_DUMP=CASE` writes that run sample by sample to `fwmech-dump-CASE.txt` in the temporary
 //! directory: `i valve twin_bar_g reference_bar_g twin_theta reference_theta` (θ = T/T_wall; the
 //! twin's from its pressure, volume and gas content).
-use pbm::mechanism::Mechanism;
-use pbm::{Meters, Twin, TwinParams};
+use pbm::twin::DigestCases;
+use pbm::Twin;
 use pbm_lab::reference::ReferenceTwin;
 use rayon::prelude::*;
 
 fn main() {
-    let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
-    let mut unit = move || {
-        seed ^= seed << 13;
-        seed ^= seed >> 7;
-        seed ^= seed << 17;
-        (seed >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut cases = DigestCases::default();
     let mut runs = Vec::new();
-    for case in 0..300 {
-        let mut p = TwinParams::nominal();
-        if case % 3 == 2 {
-            let mut r = |lo: f64, hi: f64| lo + (hi - lo) * unit();
-            p = p.with_orifice_mm(r(0.3, 4.0));
-            p.supply = pbm::BarG(r(0.0, 15.0));
-            p.dead_volume_m3 = r(0.2e-3, 50e-3);
-            p.piston_area_m2 = r(1e-4, 0.1);
-            p.stroke = Meters(r(1e-3, 0.4));
-            p.mass_kg = r(0.5, 500.0);
-            p.preload_n = r(0.0, 60e3);
-            p.spring_rate_n_per_m = r(0.0, 4e6);
-            p.coulomb_n = r(1.0, 1e4);
-            p.static_n = r(p.coulomb_n, 1e4);
-        }
-        if case % 5 == 1 {
-            p = p.with_leak_mm(unit());
-        }
-        let ms = Mechanism::ALL;
-        if case < 200 {
-            let m = ms[case % ms.len()];
-            let (lo, hi) = m.descriptor().brake.valid;
-            p.ext[m] = lo + (hi - lo) * unit();
-        } else {
-            for m in ms {
-                if unit() < 0.35 {
-                    let (lo, hi) = m.descriptor().brake.valid;
-                    p.ext[m] = lo + (hi - lo) * unit();
-                }
-            }
-        }
+    while let Some((case, p)) = cases.next_params() {
         let Ok(twin) = Twin::new(&p) else { continue };
         if !twin.coeffs().ext_active() {
             continue;
         }
-        let samples = if p.ext.is_on(Mechanism::RegulatorDroop) { 1500 } else { 6000 };
+        let samples = DigestCases::samples(&p);
         let mut open = true;
         let mut valve = Vec::with_capacity(samples);
         for i in 0..samples {
-            if i > 0 && unit() < 0.002 {
+            if i > 0 && cases.unit() < 0.002 {
                 open = !open;
             }
             valve.push(open);
