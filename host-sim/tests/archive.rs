@@ -9,31 +9,15 @@ use parquet::record::Field;
 use pbm_io::archive::{ArchiveWriter, ArchivedRelease};
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Output;
+use std::time::Duration;
 
-/// Runs `host-sim args…`, killing it after 120 s (a hang is a failure).
+mod common;
+use common::os;
+
+/// Runs `host-sim args…`, killing it after 120 s.
 fn host_sim(args: &[&OsStr]) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > Duration::from_secs(120) {
-            child.kill().unwrap();
-            panic!("host-sim {args:?} hung");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
-}
-
-fn os<S: AsRef<OsStr> + ?Sized>(s: &S) -> &OsStr {
-    s.as_ref()
+    common::host_sim_within(Duration::from_secs(120), args)
 }
 
 fn ok(out: &Output) -> String {

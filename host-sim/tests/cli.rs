@@ -1,36 +1,21 @@
 //! The command line as a user meets it: exit codes, what is reported on stderr, and that bad
 //! inputs are skipped (or refused) without losing the rest of the run or hanging.
 
+mod common;
+
+use common::os;
+use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
-use std::time::{Duration, Instant};
+use std::process::{Command, Output};
+use std::time::Duration;
 
 fn small() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/small")
 }
 
-/// Runs `host-sim args…`, killing it after 60 s (a hang is a failure, not a stuck CI job).
-fn host_sim(args: &[&std::ffi::OsStr]) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let start = Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if start.elapsed() > Duration::from_secs(60) {
-            child.kill().unwrap();
-            panic!("host-sim {args:?} hung");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    child.wait_with_output().unwrap()
-}
-
-fn os<S: AsRef<std::ffi::OsStr> + ?Sized>(s: &S) -> &std::ffi::OsStr {
-    s.as_ref()
+/// Runs `host-sim args…`, killing it after 60 s.
+fn host_sim(args: &[&OsStr]) -> Output {
+    common::host_sim_within(Duration::from_secs(60), args)
 }
 
 /// A data set dir with `good.csv` (a real trace) and whatever else `extra` writes.
