@@ -107,6 +107,68 @@ fn sparkline(records: &[ReleaseRecord], p: Parameter) -> String {
     svg
 }
 
+/// The frame both charts of a locomotive page draw in: the SVG's size, the plot area's margins,
+/// the axes, the axis titles and the legend row above the plot area (outside the data), all in
+/// 12 px text.
+#[derive(Debug, Clone, Copy)]
+struct SvgFrame {
+    w: f64,
+    h: f64,
+    left: f64,
+    right: f64,
+    top: f64,
+    bottom: f64,
+}
+
+impl SvgFrame {
+    /// The opening tag and a white background.
+    fn open(&self) -> String {
+        let (w, h) = (self.w, self.h);
+        format!(
+            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" viewBox=\"0 0 {w} {h}\" font-family=\"sans-serif\" font-size=\"12\"><rect x=\"0\" y=\"0\" width=\"{w}\" height=\"{h}\" fill=\"#ffffff\"/>"
+        )
+    }
+
+    /// The x and y axes.
+    fn axes(&self, s: &mut String) {
+        let _ = write!(
+            s,
+            "<line x1=\"{l}\" y1=\"{b}\" x2=\"{r}\" y2=\"{b}\" stroke=\"#333\"/><line x1=\"{l}\" y1=\"{t}\" x2=\"{l}\" y2=\"{b}\" stroke=\"#333\"/>",
+            l = self.left,
+            t = self.top,
+            b = self.h - self.bottom,
+            r = self.w - self.right
+        );
+    }
+
+    /// The axis titles (plain text, escaped here).
+    fn titles(&self, s: &mut String, x_title: &str, y_title: &str) {
+        let _ = write!(
+            s,
+            "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">{}</text><text transform=\"translate(16 {:.1}) rotate(-90)\" text-anchor=\"middle\">{}</text>",
+            self.left + (self.w - self.left - self.right) / 2.0,
+            self.h - 8.0,
+            escape(x_title),
+            self.top + (self.h - self.top - self.bottom) / 2.0,
+            escape(y_title)
+        );
+    }
+
+    /// The legend: a colour swatch and a label per entry, in a row above the plot area.
+    fn legend(&self, s: &mut String, items: &[(&str, &str)]) {
+        let mut lx = self.left;
+        for (color, label) in items {
+            let _ = write!(
+                s,
+                "<rect x=\"{lx:.1}\" y=\"12\" width=\"12\" height=\"12\" fill=\"{color}\"/><text x=\"{:.1}\" y=\"22\">{}</text>",
+                lx + 16.0,
+                escape(label)
+            );
+            lx += 28.0 + 6.6 * label.chars().count() as f64;
+        }
+    }
+}
+
 /// A trend chart of one parameter of one locomotive: estimates, the baseline band (± 2 σ), the
 /// fault edge and the warning, with axes labelled in 12 px text and the legend above the plot.
 fn trend_chart(records: &[ReleaseRecord], p: Parameter, rule: &WarningRule) -> Option<String> {
@@ -116,16 +178,13 @@ fn trend_chart(records: &[ReleaseRecord], p: Parameter, rule: &WarningRule) -> O
     }
     let (baseline, path) = cusum(records, p, rule);
     let warning = path.iter().find(|&&(_, s)| s > rule.h).map(|&(i, _)| records[i].release_no as f64);
-    let (w, h) = (640.0, 260.0);
-    let (left, right, top, bottom) = (64.0, 16.0, 40.0, 44.0);
+    let frame = SvgFrame { w: 640.0, h: 260.0, left: 64.0, right: 16.0, top: 40.0, bottom: 44.0 };
+    let SvgFrame { w, h, left, right, top, bottom } = frame;
     let (x0, x1) = x_span(&pts);
     let (y0, y1) = span(pts.iter().map(|q| q.1).chain([p.threshold()]));
     let sx = |x: f64| left + (x - x0) / (x1 - x0) * (w - left - right);
     let sy = |y: f64| h - bottom - (y - y0) / (y1 - y0) * (h - top - bottom);
-    let mut s = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" viewBox=\"0 0 {w} {h}\" font-family=\"sans-serif\" font-size=\"12\">"
-    );
-    let _ = write!(s, "<rect x=\"0\" y=\"0\" width=\"{w}\" height=\"{h}\" fill=\"#ffffff\"/>");
+    let mut s = frame.open();
     if let Some(b) = baseline {
         let (a, c) = (sy((b.mean + 2.0 * b.sigma).min(y1)), sy((b.mean - 2.0 * b.sigma).max(y0)));
         let _ = write!(
@@ -136,12 +195,7 @@ fn trend_chart(records: &[ReleaseRecord], p: Parameter, rule: &WarningRule) -> O
         );
     }
     // Axes and ticks.
-    let _ = write!(
-        s,
-        "<line x1=\"{left}\" y1=\"{b}\" x2=\"{r}\" y2=\"{b}\" stroke=\"#333\"/><line x1=\"{left}\" y1=\"{top}\" x2=\"{left}\" y2=\"{b}\" stroke=\"#333\"/>",
-        b = h - bottom,
-        r = w - right
-    );
+    frame.axes(&mut s);
     for i in 0..=4 {
         let y = y0 + (y1 - y0) * f64::from(i) / 4.0;
         let _ = write!(
@@ -162,19 +216,7 @@ fn trend_chart(records: &[ReleaseRecord], p: Parameter, rule: &WarningRule) -> O
             b = h - bottom
         );
     }
-    let _ = write!(
-        s,
-        "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">release number</text>",
-        left + (w - left - right) / 2.0,
-        h - 8.0
-    );
-    let _ = write!(
-        s,
-        "<text transform=\"translate(18 {:.1}) rotate(-90)\" text-anchor=\"middle\">{}, {}</text>",
-        top + (h - top - bottom) / 2.0,
-        escape(p.name()),
-        escape(p.unit())
-    );
+    frame.titles(&mut s, "release number", &format!("{}, {}", p.name(), p.unit()));
     let _ = write!(
         s,
         "<line x1=\"{left}\" x2=\"{:.1}\" y1=\"{e:.1}\" y2=\"{e:.1}\" stroke=\"{EDGE}\" stroke-width=\"1.5\" stroke-dasharray=\"6 4\"/>",
@@ -192,18 +234,15 @@ fn trend_chart(records: &[ReleaseRecord], p: Parameter, rule: &WarningRule) -> O
     for &(x, y) in &pts {
         let _ = write!(s, "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"2\" fill=\"{POINTS}\"/>", sx(x), sy(y));
     }
-    // Legend above the plot area, outside the data.
-    let items =
-        [(POINTS, "estimate per release"), (EDGE, "fault edge"), (BAND, "own baseline ± 2 σ"), (WARN, "early warning")];
-    let mut lx = left;
-    for (color, label) in items {
-        let _ = write!(
-            s,
-            "<rect x=\"{lx:.1}\" y=\"12\" width=\"12\" height=\"12\" fill=\"{color}\"/><text x=\"{:.1}\" y=\"22\">{label}</text>",
-            lx + 16.0
-        );
-        lx += 28.0 + 7.0 * label.len() as f64;
-    }
+    frame.legend(
+        &mut s,
+        &[
+            (POINTS, "estimate per release"),
+            (EDGE, "fault edge"),
+            (BAND, "own baseline ± 2 σ"),
+            (WARN, "early warning"),
+        ],
+    );
     s.push_str("</svg>");
     Some(s)
 }
@@ -432,14 +471,11 @@ fn curve_chart(curve: &ReleaseCurve) -> Option<String> {
     }
     let (y0, y1) = (lo.min(0.0), (hi + 0.3).max(1.0));
     let (x0, x1) = (0.0, t(n - 1).max(1.0));
-    let (w, h) = (760.0, 300.0);
-    let (left, right, top, bottom) = (60.0, 16.0, 40.0, 44.0);
+    let frame = SvgFrame { w: 760.0, h: 300.0, left: 60.0, right: 16.0, top: 40.0, bottom: 44.0 };
+    let SvgFrame { w, h, left, right, top, bottom } = frame;
     let sx = |x: f64| left + (x - x0) / (x1 - x0) * (w - left - right);
     let sy = |y: f64| h - bottom - (y - y0) / (y1 - y0) * (h - top - bottom);
-    let mut s = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" viewBox=\"0 0 {w} {h}\" font-family=\"sans-serif\" font-size=\"12\">"
-    );
-    let _ = write!(s, "<rect x=\"0\" y=\"0\" width=\"{w}\" height=\"{h}\" fill=\"#ffffff\"/>");
+    let mut s = frame.open();
     let b = h - bottom;
     for y in ticks(y0, y1, 5) {
         let _ = write!(
@@ -460,22 +496,8 @@ fn curve_chart(curve: &ReleaseCurve) -> Option<String> {
             px = sx(x)
         );
     }
-    let _ = write!(
-        s,
-        "<line x1=\"{left}\" y1=\"{b}\" x2=\"{r}\" y2=\"{b}\" stroke=\"#333\"/><line x1=\"{left}\" y1=\"{top}\" x2=\"{left}\" y2=\"{b}\" stroke=\"#333\"/>",
-        r = w - right
-    );
-    let _ = write!(
-        s,
-        "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">time since the release command, s</text>",
-        left + (w - left - right) / 2.0,
-        h - 8.0
-    );
-    let _ = write!(
-        s,
-        "<text transform=\"translate(16 {:.1}) rotate(-90)\" text-anchor=\"middle\">chamber pressure, bar g</text>",
-        top + (h - top - bottom) / 2.0
-    );
+    frame.axes(&mut s);
+    frame.titles(&mut s, "time since the release command, s", "chamber pressure, bar g");
     // Lines, broken where the measured sample was faulty.
     let path = |ys: &[f32]| {
         let mut d = String::new();
@@ -497,17 +519,10 @@ fn curve_chart(curve: &ReleaseCurve) -> Option<String> {
     );
     let _ =
         write!(s, "<path d=\"{}\" fill=\"none\" stroke=\"{POINTS}\" stroke-width=\"1.5\"/>", path(&curve.measured_bar));
-    let items = [(POINTS, "measured pressure"), (EDGE, "twin of a healthy brake, same valve command (dashed)")];
-    let mut lx = left;
-    for (color, label) in items {
-        let _ = write!(
-            s,
-            "<rect x=\"{lx:.1}\" y=\"12\" width=\"12\" height=\"12\" fill=\"{color}\"/><text x=\"{:.1}\" y=\"22\">{}</text>",
-            lx + 16.0,
-            escape(label)
-        );
-        lx += 28.0 + 6.6 * label.chars().count() as f64;
-    }
+    frame.legend(
+        &mut s,
+        &[(POINTS, "measured pressure"), (EDGE, "twin of a healthy brake, same valve command (dashed)")],
+    );
     s.push_str("</svg>");
     Some(s)
 }
