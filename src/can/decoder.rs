@@ -210,6 +210,31 @@ struct Session {
     unconfirmed: Option<Unconfirmed>,
 }
 
+impl Session {
+    /// When the receiver last learnt the sender's fault-report count: the last accepted status
+    /// frame (`FaultReportCount`) or fault report (its counter), whichever came later.
+    fn count_learnt_us(&self) -> u64 {
+        self.fault.map_or(self.at_us, |f| f.at_us.max(self.at_us))
+    }
+
+    /// Takes back the fault reports no status frame has counted: the fault-report state goes
+    /// back to what it was before the first of them. Returns how many (0: none).
+    fn withdraw_unconfirmed(&mut self) -> u8 {
+        let Some(u) = self.unconfirmed.take() else { return 0 };
+        self.fault = u.fault;
+        self.last_fault_counter = u.last_fault_counter;
+        self.next_fault = u.next_fault;
+        self.owed_fault = u.owed_fault;
+        u.reports
+    }
+}
+
+/// How many fault reports the sender can have sent between `since` and `now` at its rate bound
+/// (one per 100 ms), allowing each of the two receive times the latency tolerance.
+fn reports_possible(since: u64, now: u64) -> u64 {
+    now.saturating_sub(since).saturating_add(2 * TOLERANCE_US) / FAULT_MIN_GAP_US
+}
+
 /// What [`Session::unconfirmed`] restores.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct Unconfirmed {
@@ -419,10 +444,7 @@ impl Decoder {
                     {
                         self.lost = Some(s);
                         self.open(now, &link, true, rec);
-                        let jump = (link.identity.release & 0x3F).wrapping_sub(s.identity.release) & 0x3F;
-                        if let (Some(o), true) = (self.session.as_mut(), jump > 2) {
-                            o.restart_jump = jump;
-                        }
+                        self.mark_restart_jump(s.identity.release);
                     }
                     Err(e) => {
                         // A newer heartbeat late for the session clock: remember its phase (a
@@ -462,10 +484,7 @@ impl Decoder {
                         return Err(FrameError::Stale { last, got: link.counter });
                     }
                     self.open(now, &link, true, rec);
-                    let jump = release.wrapping_sub(newest) & 0x3F;
-                    if let (Some(o), true) = (self.session.as_mut(), jump > 2) {
-                        o.restart_jump = jump;
-                    }
+                    self.mark_restart_jump(newest);
                 } else {
                     // First contact with this locomotive.
                     self.open(now, &link, true, rec);
@@ -497,6 +516,18 @@ impl Decoder {
             let silence = now.saturating_sub(p.at_us);
             u64::from(link.counter) * STATUS_PERIOD_US <= silence.saturating_add(TOLERANCE_US)
         })
+    }
+
+    /// The session just opened as a restart: when its release number is more than 2 on from
+    /// `before` (more than the power-up and a release command), it cannot be told from an old
+    /// start-up recording and its reports are never current ([`Session::restart_jump`]).
+    fn mark_restart_jump(&mut self, before: u8) {
+        if let Some(o) = self.session.as_mut() {
+            let jump = o.identity.release.wrapping_sub(before) & 0x3F;
+            if jump > 2 {
+                o.restart_jump = jump;
+            }
+        }
     }
 
     fn open(&mut self, now: u64, link: &StatusLink, tentative: bool, rec: &mut Reception) {
@@ -560,12 +591,11 @@ impl Decoder {
         // (one per 100 ms), so the count's step is the number sent; after a longer gap it is
         // ambiguous and the receiver believes what it accepted.
         let count = link.fault_count & 0xF;
-        let reports_in = |since: u64| now.saturating_sub(since).saturating_add(2 * TOLERANCE_US) / FAULT_MIN_GAP_US;
         let since_report = s.fault.map_or(u64::MAX, |f| now.saturating_sub(f.at_us));
         // The report of this frame's own tick may come first without being counted by it.
         let own_tick = since_report <= MAX_LATENCY_STEP_US + TOLERANCE_US;
-        if let Some(u) = s.unconfirmed {
-            if reports_in(s.at_us) >= 16 {
+        if s.unconfirmed.is_some() {
+            if reports_possible(s.at_us, now) >= 16 {
                 s.unconfirmed = None;
             } else {
                 // Reports accepted since the last status frame carry the counters from its count
@@ -576,12 +606,7 @@ impl Decoder {
                     s.unconfirmed = None;
                 } else if !(last == sent && own_tick) {
                     // The monitor never sent them: withdrawn.
-                    rec.withdrawn = u.reports;
-                    s.fault = u.fault;
-                    s.last_fault_counter = u.last_fault_counter;
-                    s.next_fault = u.next_fault;
-                    s.owed_fault = u.owed_fault;
-                    s.unconfirmed = None;
+                    rec.withdrawn = s.withdraw_unconfirmed();
                 }
             }
         }
@@ -591,10 +616,10 @@ impl Decoder {
         // more reports than the time allows would have to explain is behind ours: the report of
         // this frame's tick came first (nothing lost), or a count the receiver held came from a
         // status frame corrupted in a way the CRC missed (the count only grows: this one is right).
-        let learnt = s.fault.map_or(s.at_us, |f| f.at_us.max(s.at_us));
+        let learnt = s.count_learnt_us();
         let mut lost = u8::from(s.owed_fault.take().is_some());
         let behind = count.wrapping_sub(s.next_fault) & 0xF;
-        if behind > 0 && u64::from(behind) <= reports_in(learnt) && !(behind == 15 && own_tick) {
+        if behind > 0 && u64::from(behind) <= reports_possible(learnt, now) && !(behind == 15 && own_tick) {
             lost += behind - 1;
             s.owed_fault = Some(count.wrapping_sub(1) & 0xF);
             s.next_fault = count;
@@ -729,14 +754,10 @@ impl Decoder {
                     && self.first_of_release(&s, identity, start, slack) == Ok(false);
                 if replaces {
                     replaced = true;
-                    rec.withdrawn = 1;
-                    if let Some(u) = s.unconfirmed.take() {
-                        rec.withdrawn = u.reports;
-                        s.fault = u.fault;
-                        s.last_fault_counter = u.last_fault_counter;
-                        s.next_fault = u.next_fault;
-                        s.owed_fault = u.owed_fault;
-                    } else {
+                    rec.withdrawn = s.withdraw_unconfirmed();
+                    if rec.withdrawn == 0 {
+                        // The report it replaces had been counted by a status frame already.
+                        rec.withdrawn = 1;
                         s.fault = None;
                         s.last_fault_counter = None;
                     }
@@ -831,8 +852,8 @@ impl Decoder {
         // behind the count (a report sent before that frame: old, unless it is the report that
         // frame overtook) or further ahead than the time allows.
         let d = counter.wrapping_sub(s.next_fault) & 0xF;
-        let learnt = s.fault.map_or(s.at_us, |f| f.at_us.max(s.at_us));
-        let possible = now.saturating_sub(learnt).saturating_add(2 * TOLERANCE_US) / FAULT_MIN_GAP_US;
+        let learnt = s.count_learnt_us();
+        let possible = reports_possible(learnt, now);
         let overtaken = s.owed_fault == Some(counter)
             || (d == 15 && s.last_fault_counter.is_none() && now.saturating_sub(s.at_us) <= TOLERANCE_US);
         if !replaced && !overtaken && u64::from(d) > possible {
@@ -842,14 +863,13 @@ impl Decoder {
                 FrameError::RateExceeded { gap_ms: ms(diff(now, learnt).max(0)) as u32 }
             });
         }
-        let snapshot = Unconfirmed {
+        let mut unconfirmed = s.unconfirmed.unwrap_or(Unconfirmed {
             fault: s.fault,
             last_fault_counter: s.last_fault_counter,
             next_fault: s.next_fault,
             owed_fault: s.owed_fault,
             reports: 0,
-        };
-        let mut unconfirmed = s.unconfirmed.unwrap_or(snapshot);
+        });
         unconfirmed.reports = unconfirmed.reports.saturating_add(1);
         // A report the last status frame counted and this is not: lost.
         let mut lost = s.owed_fault.take().map_or(0, |o| u8::from(o != counter));
