@@ -181,18 +181,21 @@ const SWITCH_ROUNDS: usize = 2;
 /// transducer state together, so a transducer lag survives it. The loaded time of a cycle is
 /// known only to about ± 10 s (± 0.2 bar of fill), an offset that would otherwise sit on the
 /// whole 30 min decay and swamp every mechanism.
-fn drive<M: MetroModel>(rows: &[MetroRow], model: &mut M, switches: &Switches) -> Vec<f64> {
+///
+/// `anchors`: rows after which the model restarts on the measured pressure, keeping its state (the
+/// last row of a [`OneOffEvent`]: an input the record does not hold).
+fn drive<M: MetroModel>(rows: &[MetroRow], model: &mut M, switches: &Switches, anchors: &[usize]) -> Vec<f64> {
     let mut out = Vec::with_capacity(rows.len());
     let Some(first) = rows.first() else { return out };
     model.restart(first.tp3_bar, true);
     out.push(model.reading());
     let mut was_loaded = first.loaded;
     let mut switch = 0;
-    for w in rows.windows(2) {
+    for (i, w) in rows.windows(2).enumerate() {
         let (r, next) = (w[0], w[1]);
         if next.loaded && !r.loaded {
             model.restart(r.tp3_bar, true);
-        } else if was_loaded && !r.loaded {
+        } else if (was_loaded && !r.loaded) || anchors.contains(&i) {
             model.restart(r.tp3_bar, false);
         }
         was_loaded = r.loaded;
@@ -250,7 +253,9 @@ impl Switches {
 /// loading phase, so a cycle's switches only move that cycle's rows). Without this, the fill
 /// rate times the ± 5 s of the sampling (≈ 0.1 bar) sits on every loading phase and pulls every
 /// other parameter of the fit.
-pub fn estimate_switches(rows: &[MetroRow], params: &ReservoirParams) -> Option<Switches> {
+///
+/// `events`: rows left out of the cost, with the model restarted after each ([`OneOffEvent`]).
+pub fn estimate_switches(rows: &[MetroRow], params: &ReservoirParams, events: &[OneOffEvent]) -> Option<Switches> {
     let intervals: Vec<(usize, usize)> = rows
         .windows(2)
         .enumerate()
@@ -273,10 +278,24 @@ pub fn estimate_switches(rows: &[MetroRow], params: &ReservoirParams) -> Option<
             continue;
         }
         let rows_seg = &rows[a..b];
+        let anchors: Vec<usize> = events
+            .iter()
+            .filter(|e| !e.recovered)
+            .map(|e| e.rows.1)
+            .filter(|r| (a..b).contains(r))
+            .map(|r| r - a)
+            .collect();
         let cost = |at: &[usize]| -> Option<f64> {
             let local = Switches(inside.iter().map(|&j| at[j]).collect());
-            let m = drive(rows_seg, &mut Reservoir::new(params).ok()?, &local);
-            Some(m.iter().zip(rows_seg).map(|(m, r)| (m - r.tp3_bar).powi(2)).sum())
+            let m = drive(rows_seg, &mut Reservoir::new(params).ok()?, &local, &anchors);
+            Some(
+                m.iter()
+                    .zip(rows_seg)
+                    .enumerate()
+                    .filter(|(i, _)| !in_event(events, a + i))
+                    .map(|(_, (m, r))| (m - r.tp3_bar).powi(2))
+                    .sum(),
+            )
         };
         let mut best = cost(&at)?;
         for _pass in 0..3 {
@@ -315,8 +334,32 @@ pub fn simulate(rows: &[MetroRow], params: &ReservoirParams) -> Option<Vec<f64>>
 
 /// [`simulate`] with the compressor switching at `switches` ([`estimate_switches`]).
 pub fn simulate_switched(rows: &[MetroRow], params: &ReservoirParams, switches: &Switches) -> Option<Vec<f64>> {
+    simulate_around(rows, params, switches, &[])
+}
+
+/// [`simulate_switched`] restarting on the measured pressure after each one-off event that left a
+/// lasting change ([`OneOffEvent::recovered`] false)
+/// ([`OneOffEvent`]); the event's own rows are not a model's to follow.
+pub fn simulate_around(
+    rows: &[MetroRow],
+    params: &ReservoirParams,
+    switches: &Switches,
+    events: &[OneOffEvent],
+) -> Option<Vec<f64>> {
     let mut model = Reservoir::new(params).ok()?;
-    Some(drive(rows, &mut model, switches))
+    let anchors: Vec<usize> = events.iter().filter(|e| !e.recovered).map(|e| e.rows.1).collect();
+    Some(drive(rows, &mut model, switches, &anchors))
+}
+
+/// NMSE (%) of `curve` over the rows where `observed` is a number (outside the events).
+fn nmse_outside(observed: &[f64], curve: &[f64]) -> f64 {
+    let (m, c): (Vec<f64>, Vec<f64>) = observed.iter().zip(curve).filter(|(o, _)| o.is_finite()).unzip();
+    pbm::metrics::nmse_pct(&m, &c).unwrap_or(f64::NAN)
+}
+
+/// Whether row `i` lies in one of `events`.
+fn in_event(events: &[OneOffEvent], i: usize) -> bool {
+    events.iter().any(|e| (e.rows.0..=e.rows.1).contains(&i))
 }
 
 /// `f64` reference of the same reservoir (the SPEC §2 chamber and energy equations written out
@@ -435,7 +478,7 @@ impl MetroModel for ReferenceReservoir {
 
 /// TP3 at the row times from the `f64` reference (to check [`simulate`]).
 pub fn simulate_reference(rows: &[MetroRow], params: &ReservoirParams) -> Vec<f64> {
-    drive(rows, &mut ReferenceReservoir::new(params), &Switches::MIDPOINT)
+    drive(rows, &mut ReferenceReservoir::new(params), &Switches::MIDPOINT, &[])
 }
 
 /// A synthetic MetroPT-3-like record from the `f64` reference (with any mechanisms on in
@@ -568,7 +611,7 @@ pub fn synthetic_sweep(cases: usize, seed: u64) -> Result<Vec<SweepCase>> {
             let value = scope(effect).draw(u_side, u_value);
             let params = metro_params(&SYNTHETIC_BASE_U, &[(effect, value)]);
             let rows = synthetic_rows(&params, SYNTHETIC_ROWS, SYNTHETIC_SIGMA_BAR, case_seed);
-            let out = audit_metro(&rows)?;
+            let out = audit_metro_with(&rows, false)?;
             Ok(SweepCase {
                 seed: case_seed,
                 truth: (effect, value),
@@ -654,6 +697,9 @@ pub struct MetroFit {
     pub curve: Vec<f64>,
     /// The compressor switches the curve was run with ([`estimate_switches`]).
     pub switches: Switches,
+    /// Leave-one-cycle-out validation ([`HeldOut`]); `None` when not run or with too few
+    /// complete cycles.
+    pub held_out: Option<HeldOut>,
 }
 
 /// Outcome of the metro audit.
@@ -691,6 +737,8 @@ pub struct MetroOutcome {
     /// When the chosen model has the compressor switch, s after the start of each sampling
     /// interval in which COMP changes ([`Switches::seconds`]).
     pub switch_s: Vec<f64>,
+    /// One-off consumption events, left out of every fit and figure ([`one_off_events`]).
+    pub events: Vec<OneOffEvent>,
 }
 
 /// The unmodelled pressure rate of the chosen model, aligned on the compressor's switching and
@@ -826,13 +874,7 @@ pub fn cycle_floor(rows: &[MetroRow], measured: &[f64], curve: &[f64]) -> Option
     if curve.len() != rows.len() || measured.len() != rows.len() {
         return None;
     }
-    let loads: Vec<usize> = (1..rows.len()).filter(|&i| rows[i].loaded && !rows[i - 1].loaded).collect();
-    // (loading start, unloading start, next loading start) of every complete cycle.
-    let cycles: Vec<(usize, usize, usize)> = loads
-        .windows(2)
-        .filter_map(|w| (w[0]..w[1]).find(|&i| !rows[i].loaded).map(|u| (w[0], u, w[1])))
-        .filter(|&(l, u, n)| u > l + 1 && n > u + 1)
-        .collect();
+    let cycles = complete_cycles(rows);
     if cycles.len() < 3 {
         return None;
     }
@@ -859,6 +901,8 @@ pub fn cycle_floor(rows: &[MetroRow], measured: &[f64], curve: &[f64]) -> Option
     let k = cycles.len() as f64;
     let bound = t_bound_99(cycles.len() - 1);
     let (mut var, mut mean2, mut beyond) = (0.0, 0.0, 0usize);
+    // Times at which a cycle is inside a one-off event (NaN) are left out.
+    points.retain(|v| v.iter().all(|x| x.is_finite()));
     for v in &points {
         let m = v.iter().sum::<f64>() / k;
         let s2 = v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (k - 1.0);
@@ -962,6 +1006,10 @@ fn phase_rms(rows: &[MetroRow], measured: &[f64], curve: &[f64]) -> [(String, f6
             2
         };
         let e = measured[i] - curve.get(i).copied().unwrap_or(f64::NAN);
+        if !e.is_finite() {
+            // An event's row (or a missing model row): not the model's to follow.
+            continue;
+        }
         acc[k].0 += e * e;
         acc[k].1 += e;
         acc[k].2 += 1;
@@ -976,33 +1024,70 @@ fn phase_rms(rows: &[MetroRow], measured: &[f64], curve: &[f64]) -> [(String, f6
 }
 
 /// Runs the metro audit on rows.
-pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
-    let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
-    let sigma = noise_sigma(&measured).max(1e-3);
-    let on_of = |u: &[f64], effects: &[Mechanism]| -> Vec<(Mechanism, f64)> {
-        effects.iter().enumerate().map(|(i, &e)| (e, metro_value(e, u[2 + i]))).collect()
-    };
-    let resid = |u: &[f64], effects: &[Mechanism], sw: &Switches| -> Option<Vec<f64>> {
-        let m = simulate_switched(rows, &metro_params(u, &on_of(u, effects)), sw)?;
-        let r: Vec<f64> = m.iter().zip(&measured).map(|(a, b)| (a - b) / sigma).collect();
+/// Fits the metro candidates to one record: the residual in noise σ of a candidate at a point of
+/// its unit box, and the Levenberg–Marquardt fit with the compressor switches estimated
+/// ([`estimate_switches`]), on every row or only on the rows a mask keeps (held-out
+/// validation, [`HeldOut`]).
+struct MetroFitter<'a> {
+    rows: &'a [MetroRow],
+    measured: Vec<f64>,
+    sigma: f64,
+    /// One-off events: their rows are left out, and the model restarts after a lasting one.
+    events: Vec<OneOffEvent>,
+}
+
+/// A fitted candidate: the optimum and the switches it was run with.
+type FitResult = (crate::audit::LmResult, Switches);
+
+impl MetroFitter<'_> {
+    /// The mechanisms `effects` at their magnitudes in `u` (after the two base coordinates).
+    fn on_of(u: &[f64], effects: &[Mechanism]) -> Vec<(Mechanism, f64)> {
+        effects.iter().enumerate().map(|(i, &e)| (e, metro_value(e, u.get(2 + i).copied().unwrap_or(0.0)))).collect()
+    }
+
+    /// The candidate's curve at `u` ([`simulate_around`] the events).
+    fn simulate(&self, u: &[f64], effects: &[Mechanism], sw: &Switches) -> Option<Vec<f64>> {
+        simulate_around(self.rows, &metro_params(u, &Self::on_of(u, effects)), sw, &self.events)
+    }
+
+    /// Residual (σ units) of the rows `keep` admits (all with `None`) outside the events.
+    fn resid(&self, u: &[f64], effects: &[Mechanism], sw: &Switches, keep: Option<&[bool]>) -> Option<Vec<f64>> {
+        let m = self.simulate(u, effects, sw)?;
+        let r: Vec<f64> = m
+            .iter()
+            .zip(&self.measured)
+            .enumerate()
+            .filter(|(i, _)| keep.is_none_or(|k| k[*i]) && !in_event(&self.events, *i))
+            .map(|(_, (a, b))| (a - b) / self.sigma)
+            .collect();
         r.iter().all(|v| v.is_finite()).then_some(r)
-    };
-    let fit_at = |effects: &[Mechanism], starts: &[Vec<f64>], sw: &Switches| {
+    }
+
+    fn fit_at(
+        &self,
+        effects: &[Mechanism],
+        starts: &[Vec<f64>],
+        sw: &Switches,
+        keep: Option<&[bool]>,
+    ) -> Option<crate::audit::LmResult> {
         starts
             .par_iter()
-            .filter_map(|x0| levenberg_marquardt(&|u: &[f64]| resid(u, effects, sw), x0, 60))
+            .filter_map(|x0| levenberg_marquardt(&|u: &[f64]| self.resid(u, effects, sw, keep), x0, 60))
             .min_by(|a, b| a.rss.total_cmp(&b.rss))
-    };
-    // Every candidate is fitted with the compressor switches at the midpoints of their sampling
-    // intervals, then with the switches estimated for its optimum, refitted, twice
-    // ([`estimate_switches`]): each model gets the same nuisance freedom, so the comparison
-    // stays fair and the switch timing no longer pulls the parameters.
-    let fit = |effects: &[Mechanism], starts: Vec<Vec<f64>>| -> Option<(crate::audit::LmResult, Switches)> {
-        let mut lm = fit_at(effects, &starts, &Switches::MIDPOINT)?;
+    }
+
+    /// Every candidate is fitted with the compressor switches at the midpoints of their sampling
+    /// intervals, then with the switches estimated for its optimum, refitted, twice
+    /// ([`estimate_switches`]): each model gets the same nuisance freedom, so the comparison
+    /// stays fair and the switch timing no longer pulls the parameters. A cycle's switches move
+    /// only that cycle's rows (the model restarts before each loading phase), so the switches
+    /// of a held-out cycle do not touch the fit.
+    fn fit(&self, effects: &[Mechanism], starts: Vec<Vec<f64>>, keep: Option<&[bool]>) -> Option<FitResult> {
+        let mut lm = self.fit_at(effects, &starts, &Switches::MIDPOINT, keep)?;
         let mut sw = Switches::MIDPOINT;
         for _ in 0..SWITCH_ROUNDS {
-            let next = estimate_switches(rows, &metro_params(&lm.x, &on_of(&lm.x, effects)))?;
-            match fit_at(effects, std::slice::from_ref(&lm.x), &next) {
+            let next = estimate_switches(self.rows, &metro_params(&lm.x, &Self::on_of(&lm.x, effects)), &self.events)?;
+            match self.fit_at(effects, std::slice::from_ref(&lm.x), &next, keep) {
                 Some(refit) if refit.rss < lm.rss => {
                     lm = refit;
                     sw = next;
@@ -1011,7 +1096,297 @@ pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
             }
         }
         Some((lm, sw))
+    }
+
+    /// Leave-one-cycle-out validation of a candidate fitted at `x` on every row: for each
+    /// complete cycle, the candidate is refitted on the other rows (from `x`) and predicts the
+    /// cycle; `None` with fewer than [`HELD_OUT_MIN_CYCLES`] complete cycles.
+    fn held_out(&self, effects: &[Mechanism], x: &[f64], in_sample: &[f64]) -> Option<HeldOut> {
+        let cycles = complete_cycles(self.rows);
+        if cycles.len() < HELD_OUT_MIN_CYCLES {
+            return None;
+        }
+        let n = self.rows.len();
+        let folds: Vec<Option<(usize, usize, Vec<f64>)>> = cycles
+            .par_iter()
+            .map(|&(l, _, next)| {
+                // The row before the loading is the cycle's initial condition (the model restarts
+                // on it), so the held-out rows are the loading start up to the next one.
+                let keep: Vec<bool> = (0..n).map(|i| !(l..next).contains(&i)).collect();
+                let (lm, sw) = self.fit(effects, vec![x.to_vec()], Some(&keep))?;
+                let curve = self.simulate(&lm.x, effects, &sw)?;
+                Some((l, next, curve))
+            })
+            .collect();
+        let (mut measured, mut predicted, mut fitted) = (Vec::new(), Vec::new(), Vec::new());
+        for fold in folds {
+            let (l, next, curve) = fold?;
+            for i in (l..next).filter(|&i| !in_event(&self.events, i)) {
+                measured.push(self.measured[i]);
+                predicted.push(*curve.get(i)?);
+                fitted.push(*in_sample.get(i)?);
+            }
+        }
+        Some(HeldOut {
+            cycles: cycles.len(),
+            rows: measured.len(),
+            nmse_pct: pbm::metrics::nmse_pct(&measured, &predicted)?,
+            in_sample_nmse_pct: pbm::metrics::nmse_pct(&measured, &fitted)?,
+        })
+    }
+}
+
+/// Width of the windows in which [`one_off_events`] compares the decay rates of the cycles, s.
+pub const EVENT_WINDOW_S: f64 = 60.0;
+/// The first minutes after unloading are not searched for one-off events: there the decay rate
+/// changes fast and the ± 5 s of the COMP sampling moves it more than an event would.
+pub const EVENT_SKIP_S: f64 = 180.0;
+/// A window's rate is an event when it is this many robust σ of the cycle-to-cycle differences
+/// away from the other cycles' rate in the same window (and by at least [`EVENT_MIN_BAR_PER_MIN`]).
+pub const EVENT_SIGMAS: f64 = 8.0;
+/// Windows after an event in which its pressure may come back to the other cycles' course
+/// ([`OneOffEvent::recovered`]).
+pub const EVENT_RECOVERY_WINDOWS: usize = 10;
+/// Smallest rate difference called an event, bar/min: ten times the rate noise that a 1.2 mbar
+/// transducer noise leaves in a 60 s window (√2 · 1.2 mbar per min), so quantisation alone
+/// never makes one.
+pub const EVENT_MIN_BAR_PER_MIN: f64 = 0.017;
+
+/// A one-off change of the air consumption in one cycle (issue 17: tell a systematic mechanism
+/// from a one-off event, and report the event as such instead of bending a mechanism to fit
+/// it). Found without any model ([`one_off_events`]): in a window of the decay, one cycle's
+/// pressure falls at a rate the other cycles, at the same time after unloading, do not share.
+/// The audit leaves its rows out of every fit and figure; when the pressure did not come back, it
+/// also restarts the model on the measured pressure after it (an input the record does not hold,
+/// like the consumption itself).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OneOffEvent {
+    /// The complete cycle it happened in (1 = the record's first).
+    pub cycle: usize,
+    /// First and last row it covers.
+    pub rows: (usize, usize),
+    /// Seconds since the record's first row, start and end.
+    pub t_s: (f64, f64),
+    /// Seconds after the compressor unloaded at which it began.
+    pub since_unload_s: f64,
+    /// Pressure range over it, bar.
+    pub pressure_bar: (f64, f64),
+    /// Largest pressure the cycle had lost beyond what the other cycles lost since the event
+    /// began, bar (negative: it lost less; an inflow).
+    pub dip_bar: f64,
+    /// What it had lost beyond them at the event's end, bar: ≈ 0 when the pressure came back
+    /// ([`Self::recovered`]).
+    pub net_bar: f64,
+    /// The pressure returned to the other cycles' course within [`EVENT_RECOVERY_WINDOWS`]
+    /// windows: a transient, not a lasting loss. Otherwise the model restarts after the event.
+    pub recovered: bool,
+    /// Largest window difference in robust σ of the cycle-to-cycle differences.
+    pub sigmas: f64,
+}
+
+impl OneOffEvent {
+    /// Air that a pressure change of `bar` is, g, at the assumed volume [`METRO_VOLUME_M3`] and
+    /// the wall temperature (m = Δp V / (R T)).
+    pub fn air_g(bar: f64) -> f64 {
+        bar * 1e5 * METRO_VOLUME_M3 / (pbm::params::GAS_CONSTANT * TEMPERATURE_K) * 1e3
+    }
+
+    /// One sentence: when, where and how much air.
+    pub fn describe(&self) -> String {
+        let what = if self.dip_bar >= 0.0 { "more outflow" } else { "less outflow" };
+        let mut s = format!(
+            "a one-off event in cycle {} from {:.0} to {:.0} s of the record ({:.0} s after unloading, {:.2}–{:.2} \
+             bar): {:.3} bar {what} than the other cycles at that time (≈ {:.0} g of air at {} m³)",
+            self.cycle,
+            self.t_s.0,
+            self.t_s.1,
+            self.since_unload_s,
+            self.pressure_bar.0,
+            self.pressure_bar.1,
+            self.dip_bar.abs(),
+            Self::air_g(self.dip_bar.abs()),
+            METRO_VOLUME_M3,
+        );
+        if self.recovered {
+            s.push_str(", then the pressure came back to the other cycles' course");
+        } else {
+            s.push_str(&format!(", a lasting change of {:+.3} bar", -self.net_bar));
+        }
+        s
+    }
+}
+
+/// Finds [`OneOffEvent`]s in the decays of the complete cycles, without a model: each decay is
+/// cut into [`EVENT_WINDOW_S`] windows from [`EVENT_SKIP_S`] after the unloading, and a cycle's
+/// rate in a window is compared with the median of the other cycles' rates in the same window
+/// (at least two others). The differences' robust σ (1.4826 · MAD over every cycle and window)
+/// is the cycle-to-cycle variation; a difference beyond [`EVENT_SIGMAS`] of it (and
+/// [`EVENT_MIN_BAR_PER_MIN`]) in one cycle only is an event. Neighbouring windows of one cycle
+/// (a gap of one allowed) make one event. A mechanism acts in every cycle, so it never shows here.
+pub fn one_off_events(rows: &[MetroRow]) -> Vec<OneOffEvent> {
+    let cycles = complete_cycles(rows);
+    if cycles.len() < 3 {
+        return Vec::new();
+    }
+    // Pressure of the decay u..n at `ts` after its first row (linear between rows), if inside.
+    let at = |u: usize, n: usize, ts: f64| -> Option<f64> {
+        let t = rows[u].t_s + ts;
+        let k = (u..n - 1).find(|&k| rows[k + 1].t_s >= t)?;
+        let (t0, t1) = (rows[k].t_s, rows[k + 1].t_s);
+        let w = ((t - t0) / (t1 - t0).max(1e-9)).clamp(0.0, 1.0);
+        Some(rows[k].tp3_bar * (1.0 - w) + rows[k + 1].tp3_bar * w)
     };
+    let longest = cycles.iter().map(|&(_, u, n)| rows[n - 1].t_s - rows[u].t_s).fold(0.0, f64::max);
+    let windows = ((longest - EVENT_SKIP_S) / EVENT_WINDOW_S).max(0.0) as usize;
+    // rate[c][w], bar/min.
+    let rate: Vec<Vec<Option<f64>>> = cycles
+        .iter()
+        .map(|&(_, u, n)| {
+            (0..windows)
+                .map(|w| {
+                    let a = EVENT_SKIP_S + w as f64 * EVENT_WINDOW_S;
+                    Some((at(u, n, a + EVENT_WINDOW_S)? - at(u, n, a)?) / EVENT_WINDOW_S * 60.0)
+                })
+                .collect()
+        })
+        .collect();
+    let median = |mut v: Vec<f64>| -> f64 {
+        v.sort_by(f64::total_cmp);
+        let m = v.len() / 2;
+        if v.len() % 2 == 0 {
+            (v[m - 1] + v[m]) / 2.0
+        } else {
+            v[m]
+        }
+    };
+    let mut diff: Vec<Vec<Option<f64>>> = vec![vec![None; windows]; cycles.len()];
+    for w in 0..windows {
+        for c in 0..cycles.len() {
+            let others: Vec<f64> = (0..cycles.len()).filter(|&o| o != c).filter_map(|o| rate[o][w]).collect();
+            if let (Some(r), true) = (rate[c][w], others.len() >= 2) {
+                diff[c][w] = Some(r - median(others));
+            }
+        }
+    }
+    let all: Vec<f64> = diff.iter().flatten().flatten().map(|d| d.abs()).collect();
+    if all.len() < 8 {
+        return Vec::new();
+    }
+    let sigma = (1.4826 * median(all)).max(1e-6);
+    let big = |c: usize, w: usize| {
+        diff[c][w].is_some_and(|d| d.abs() > EVENT_SIGMAS * sigma && d.abs() > EVENT_MIN_BAR_PER_MIN)
+    };
+    let mut events = Vec::new();
+    for (c, &(_, u, n)) in cycles.iter().enumerate() {
+        // A window where another cycle is off too is not one cycle's event.
+        let flagged: Vec<bool> =
+            (0..windows).map(|w| big(c, w) && !(0..cycles.len()).any(|o| o != c && big(o, w))).collect();
+        let mut w = 0;
+        while w < windows {
+            if !flagged[w] {
+                w += 1;
+                continue;
+            }
+            let mut end = w;
+            while end + 1 < windows && (flagged[end + 1] || (end + 2 < windows && flagged[end + 2])) {
+                end += 1;
+            }
+            // An event rarely fills whole windows: the windows on either side that lean the same
+            // way by more than the noise (3 σ) belong to it too.
+            let sign = diff[c][w].unwrap_or(0.0).signum();
+            let leans = |k: usize| diff[c][k].is_some_and(|d| d * sign > 3.0 * sigma);
+            let mut start = w;
+            while start > 0 && leans(start - 1) {
+                start -= 1;
+            }
+            while end + 1 < windows && leans(end + 1) {
+                end += 1;
+            }
+            // Then follow what the cycle has lost beyond the others since the event began: if it
+            // comes back (within a noise-sized band, or to a fifth of its peak) in the next
+            // windows, the event is a transient and ends there; otherwise it ends with its last
+            // flagged window and the model restarts after it.
+            let lost =
+                |to: usize| -> f64 { -(start..=to).filter_map(|k| diff[c][k]).sum::<f64>() * EVENT_WINDOW_S / 60.0 };
+            let peak = (start..=end).map(lost).fold(0.0f64, |a, v| if v.abs() > a.abs() { v } else { a });
+            let band = (3.0 * sigma * EVENT_WINDOW_S / 60.0).max(0.2 * peak.abs());
+            let back = (end + 1..windows.min(end + 1 + EVENT_RECOVERY_WINDOWS)).find(|&k| lost(k).abs() <= band);
+            let recovered = back.is_some();
+            let end = back.unwrap_or(end);
+            let (from, to) =
+                (EVENT_SKIP_S + start as f64 * EVENT_WINDOW_S, EVENT_SKIP_S + (end + 1) as f64 * EVENT_WINDOW_S);
+            let inside: Vec<usize> = (u..n).filter(|&i| (from..=to).contains(&(rows[i].t_s - rows[u].t_s))).collect();
+            if let (Some(&first), Some(&last)) = (inside.first(), inside.last()) {
+                let p = inside.iter().map(|&i| rows[i].tp3_bar);
+                events.push(OneOffEvent {
+                    cycle: c + 1,
+                    rows: (first, last),
+                    t_s: (rows[first].t_s, rows[last].t_s),
+                    since_unload_s: rows[first].t_s - rows[u].t_s,
+                    pressure_bar: (p.clone().fold(f64::INFINITY, f64::min), p.fold(f64::NEG_INFINITY, f64::max)),
+                    dip_bar: peak,
+                    net_bar: lost(end),
+                    recovered,
+                    sigmas: (start..=end).filter_map(|k| diff[c][k]).map(|d| d.abs() / sigma).fold(0.0, f64::max),
+                });
+            }
+            w = end + 1;
+        }
+    }
+    events
+}
+
+/// Fewest complete compressor cycles for a held-out validation ([`HeldOut`]): each fold fits on
+/// the others, so at least two must remain.
+pub const HELD_OUT_MIN_CYCLES: usize = 3;
+
+/// Leave-one-cycle-out validation of a fitted candidate (issue: a model is judged on the
+/// compressor cycles it was not fitted to). Every complete cycle (a loading phase and the decay
+/// to the next one) is held out in turn: the candidate is refitted on the rest of the record and
+/// predicts that cycle from the pressure at its start, the same initial condition the fit uses.
+/// Only the two compressor switch instants of the held-out cycle come from its own rows (COMP
+/// gives them only to its 10 s sampling, [`estimate_switches`]); every model parameter comes
+/// from the other cycles.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeldOut {
+    /// Complete cycles, each held out once.
+    pub cycles: usize,
+    /// Rows predicted (the complete cycles' rows).
+    pub rows: usize,
+    /// NMSE of the held-out predictions over those rows, %.
+    pub nmse_pct: f64,
+    /// NMSE of the fit to every row over the same rows, %: held-out well above it is overfit.
+    pub in_sample_nmse_pct: f64,
+}
+
+/// (loading start, unloading start, next loading start) row indices of every complete cycle.
+fn complete_cycles(rows: &[MetroRow]) -> Vec<(usize, usize, usize)> {
+    let loads: Vec<usize> = (1..rows.len()).filter(|&i| rows[i].loaded && !rows[i - 1].loaded).collect();
+    loads
+        .windows(2)
+        .filter_map(|w| (w[0]..w[1]).find(|&i| !rows[i].loaded).map(|u| (w[0], u, w[1])))
+        .filter(|&(l, u, n)| u > l + 1 && n > u + 1)
+        .collect()
+}
+
+/// The metro audit ([`MetroOutcome`]) with every fitted candidate validated on held-out
+/// compressor cycles ([`HeldOut`]).
+pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
+    audit_metro_with(rows, true)
+}
+
+/// [`audit_metro`], with the held-out validation only when `validate` (the synthetic sweep
+/// scores the verdict and skips it: it refits every candidate once per cycle).
+pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcome> {
+    let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
+    let sigma = noise_sigma(&measured).max(1e-3);
+    let events = one_off_events(rows);
+    let fitter = MetroFitter { rows, measured: measured.clone(), sigma, events: events.clone() };
+    // The measurements a model is judged on: NaN on the events' rows (the summaries skip them).
+    let observed: Vec<f64> =
+        measured.iter().enumerate().map(|(i, &m)| if in_event(&events, i) { f64::NAN } else { m }).collect();
+    let on_of = MetroFitter::on_of;
+    let fit = |effects: &[Mechanism], starts: Vec<Vec<f64>>| fitter.fit(effects, starts, None);
     let base_starts: Vec<Vec<f64>> = [0.2, 0.5, 0.8].iter().flat_map(|&a| [0.3, 0.6].map(|b| vec![a, b])).collect();
     let (base_lm, base_sw) = fit(&[], base_starts).context("base model cannot be fitted")?;
     let mut fits: Vec<(Vec<Mechanism>, crate::audit::LmResult, Switches)> = METRO_EFFECTS
@@ -1057,24 +1432,25 @@ pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
             .enumerate()
             .map(|(i, &(e, v))| (e, v, (diag[2 + i] * s2).max(0.0).sqrt() * metro_slope(e, lm.x[2 + i]).abs()))
             .collect();
-        let curve = simulate_switched(rows, &params, sw).unwrap_or_default();
+        let curve = simulate_around(rows, &params, sw, &events).unwrap_or_default();
         MetroFit {
             name: if effects.is_empty() {
                 "base".to_owned()
             } else {
                 effects.iter().map(|e| e.name()).collect::<Vec<_>>().join("+")
             },
-            nmse_pct: pbm::metrics::nmse_pct(&measured, &curve).unwrap_or(f64::NAN),
+            nmse_pct: nmse_outside(&observed, &curve),
             effects: eff,
             rss: lm.rss,
             delta_bic: dbic(base_lm.rss, lm.rss, effects.len()),
+            held_out: if validate { fitter.held_out(effects, &lm.x, &curve) } else { None },
             params,
             curve,
             switches: sw.clone(),
         }
     };
     let base = mk(&[], &base_lm, &base_sw);
-    let mut ranking: Vec<MetroFit> = fits.iter().map(|(e, lm, sw)| mk(e, lm, sw)).collect();
+    let mut ranking: Vec<MetroFit> = fits.par_iter().map(|(e, lm, sw)| mk(e, lm, sw)).collect();
     ranking.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
     let mut chosen = base.clone();
     if let Some(s) = ranking.iter().find(|c| c.effects.len() == 1) {
@@ -1107,10 +1483,11 @@ pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
         cause,
         residual_to_noise,
         note,
-        base_phase_rms: phase_rms(rows, &measured, &base.curve),
-        chosen_phase_rms: phase_rms(rows, &measured, &chosen.curve),
-        missing: aligned_rate(rows, &measured, &chosen.curve),
-        cycle_floor: cycle_floor(rows, &measured, &chosen.curve),
+        base_phase_rms: phase_rms(rows, &observed, &base.curve),
+        chosen_phase_rms: phase_rms(rows, &observed, &chosen.curve),
+        missing: aligned_rate(rows, &observed, &chosen.curve),
+        cycle_floor: cycle_floor(rows, &observed, &chosen.curve),
+        events,
         switch_s: chosen.switches.seconds(rows),
         switch_timing_floor_bar: {
             let mut dt: Vec<f64> = rows.windows(2).map(|w| w[1].t_s - w[0].t_s).collect();
@@ -1144,6 +1521,15 @@ impl MetroOutcome {
         for (name, rms, bias) in &self.base_phase_rms {
             let _ = writeln!(s, "  {name:<28} RMS {rms:.4} bar, bias (measured − model) {bias:+.4} bar");
         }
+        for e in &self.events {
+            let _ = writeln!(
+                s,
+                "{} ({:.0} σ of the cycle-to-cycle differences; its {} rows are left out of every fit and figure)",
+                e.describe(),
+                e.sigmas,
+                e.rows.1 + 1 - e.rows.0
+            );
+        }
         for c in &self.ranking {
             s.push_str(&ranking_line(&c.name, c.delta_bic, self.base.rss / c.rss, c.nmse_pct, &c.json_effects()));
         }
@@ -1162,6 +1548,26 @@ impl MetroOutcome {
         );
         for (name, rms, bias) in &self.chosen_phase_rms {
             let _ = writeln!(s, "  chosen: {name:<20} RMS {rms:.4} bar, bias (measured − model) {bias:+.4} bar");
+        }
+        if let Some(h) = self.base.held_out {
+            let _ = writeln!(
+                s,
+                "held out (each of the {} complete cycles predicted by a fit to the others, {} rows; NMSE held out vs \
+                 fitted to all):",
+                h.cycles, h.rows
+            );
+            for f in std::iter::once(&self.base).chain(&self.ranking) {
+                if let Some(h) = f.held_out {
+                    let _ = writeln!(
+                        s,
+                        "  {:<36} {:.3} % vs {:.3} %{}",
+                        f.name,
+                        h.nmse_pct,
+                        h.in_sample_nmse_pct,
+                        if f.name == self.chosen.name { "  (chosen)" } else { "" }
+                    );
+                }
+            }
         }
         let _ = writeln!(
             s,
@@ -1222,6 +1628,9 @@ impl MetroOutcome {
         if let Some(n) = &self.note {
             text.push_str(&format!("; {n}"));
         }
+        for e in &self.events {
+            text.push_str(&format!("; the record also holds {}, not a mechanism (one cycle only)", e.describe()));
+        }
         if c > NOISE_FLOOR_RATIO {
             if let Some(f) = &self.cycle_floor {
                 text.push_str(&format!(
@@ -1267,6 +1676,24 @@ impl MetroOutcome {
         doc["explains_all"] = serde_json::Value::Bool(self.residual_to_noise.1 <= NOISE_FLOOR_RATIO);
         doc["verdict"] = serde_json::json!(self.verdict_text());
         doc["switch_timing_floor_bar"] = serde_json::json!(self.switch_timing_floor_bar);
+        doc["one_off_events"] = serde_json::json!(self
+            .events
+            .iter()
+            .map(|e| serde_json::json!({
+                "cycle": e.cycle, "rows": [e.rows.0, e.rows.1], "t_s": [e.t_s.0, e.t_s.1],
+                "since_unload_s": e.since_unload_s, "pressure_bar": [e.pressure_bar.0, e.pressure_bar.1],
+                "dip_bar": e.dip_bar, "net_bar": e.net_bar, "recovered": e.recovered,
+                "air_g": OneOffEvent::air_g(e.dip_bar.abs()),
+                "sigmas": e.sigmas, "text": e.describe(),
+            }))
+            .collect::<Vec<_>>());
+        doc["held_out"] = serde_json::json!(std::iter::once(&self.base)
+            .chain(&self.ranking)
+            .filter_map(|f| f.held_out.map(|h| serde_json::json!({
+                "model": f.name, "cycles": h.cycles, "rows": h.rows,
+                "nmse_pct": h.nmse_pct, "in_sample_nmse_pct": h.in_sample_nmse_pct,
+            })))
+            .collect::<Vec<_>>());
         doc["switch_s"] = serde_json::json!(self.switch_s);
         doc["cycle_floor"] = self.cycle_floor.map_or(serde_json::Value::Null, |f| {
             serde_json::json!({
@@ -1438,7 +1865,7 @@ mod tests {
         let truth = metro_params(&SYNTHETIC_BASE_U, &[(Mechanism::HeatTransfer, 20.0)]);
         for seed in [7, 8] {
             let rows = synthetic_rows_with(&truth, SYNTHETIC_ROWS, SYNTHETIC_SIGMA_BAR, seed, 0.08);
-            let out = audit_metro(&rows).expect("audit runs");
+            let out = audit_metro_with(&rows, false).expect("audit runs");
             eprint!("{}", out.summary());
             assert!(out.cause.split('+').any(|c| c == "heat_transfer"), "{}", out.cause);
             assert!(out.residual_to_noise.1 > 3.0 * NOISE_FLOOR_RATIO, "{:?}", out.residual_to_noise);
@@ -1457,7 +1884,7 @@ mod tests {
     fn the_right_model_is_at_the_cycle_floor_of_identical_cycles() {
         let truth = metro_params(&SYNTHETIC_BASE_U, &[(Mechanism::HeatTransfer, 20.0)]);
         let rows = synthetic_rows(&truth, SYNTHETIC_ROWS, SYNTHETIC_SIGMA_BAR, 11);
-        let out = audit_metro(&rows).expect("audit runs");
+        let out = audit_metro_with(&rows, false).expect("audit runs");
         let floor = out.cycle_floor.expect("complete cycles");
         assert!(!floor.systematic(), "{floor:?}");
         assert!(out.residual_to_noise.1 <= NOISE_FLOOR_RATIO, "{:?}", out.residual_to_noise);
@@ -1473,7 +1900,7 @@ mod tests {
         let (mut false_systematic, mut caught, mut n) = (0, 0, 0);
         for seed in 100..124u64 {
             let rows = synthetic_rows_with(&truth, SYNTHETIC_ROWS, SYNTHETIC_SIGMA_BAR, seed, 0.08);
-            let out = audit_metro(&rows).expect("audit runs");
+            let out = audit_metro_with(&rows, false).expect("audit runs");
             let chosen = out.cycle_floor.expect("complete cycles");
             let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
             let base = cycle_floor(&rows, &measured, &out.base.curve).expect("complete cycles");
