@@ -30,6 +30,23 @@
 //! - `sensor_lag`, `sensor_offset`, `sensor_gain`: the transducer.
 //! - `laminar_leak`: an extra leak ∝ gauge pressure, this many g/s at 7 bar g.
 //!
+//! # The wall node ([`WallNode`], reservoir only)
+//!
+//! With `heat_transfer` on, the gas exchanges heat with a wall at the ambient temperature: one
+//! thermal node. A steel reservoir's wall and the pipework near the inlet hold heat, though: the
+//! gas warms them while the compressor delivers hot air, and after unloading the gas cools
+//! first to the warmed wall (τ of `heat_transfer`), then with the wall over minutes. The wall
+//! node is that second state: θ_w relaxes toward the gas with the gas-to-wall heat-capacity
+//! ratio ε (at [`WALL_REF_BAR`], scaled with the gas mass) and cools to ambient with its own
+//! time constant,
+//!
+//! dθ_w/dt = ε (m/m_ref) (θ − θ_w)/τ − (θ_w − 1)/τ_w,
+//!
+//! and the gas's heat term pulls θ toward θ_w instead of 1: the extra heat p (θ_w − 1)/(θ τ) per
+//! second enters the chamber as an energy increment, so the twin's [`chamber_substep`] is
+//! unchanged (and the brake twin's bits with it). Off (ε = 0) the model is bit for bit the
+//! one-node one.
+//!
 //! `regulator_droop`, `progressive_spring` and `gas_temperature` have no counterpart (no
 //! regulator, no piston, the delivery temperature is an input): [`ReservoirParams::validate`]
 //! rejects them.
@@ -56,6 +73,39 @@ const MAX_LAMINAR_GAIN: f64 = 2e-3;
 /// Delivery temperatures are clamped to 1..=600 K.
 const MAX_DELIVERY: Q<i64, 8> = Q(600 << 8);
 
+/// θ_w = 1 (the wall at ambient) in the wall state's Q40.
+const WALL_ONE: Q<i64, 40> = Q(1 << 40);
+
+/// Pressure (bar abs) at which [`WallNode::capacity_ratio`] is given: ≈ 10 bar g, the top of
+/// a compressor cycle. The gas's heat capacity scales with its mass, p/θ.
+pub const WALL_REF_BAR: f64 = 11.0;
+
+/// The reservoir wall as a second thermal node (module documentation). Needs `heat_transfer`
+/// (its τ couples gas and wall).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WallNode {
+    /// Heat capacity of the gas at [`WALL_REF_BAR`] and the ambient temperature over the wall's
+    /// (ε); 0 switches the node off (the wall stays at the ambient temperature).
+    pub capacity_ratio: f64,
+    /// Time constant of the wall's cooling to ambient, s.
+    pub cooling_s: f64,
+}
+
+impl WallNode {
+    /// No wall node: the one-node thermal model.
+    pub const OFF: WallNode = WallNode { capacity_ratio: 0.0, cooling_s: 0.0 };
+
+    /// Valid range of ε.
+    pub const CAPACITY_RATIO: (f64, f64) = (0.0, 5.0);
+    /// Valid range of τ_w, s.
+    pub const COOLING_S: (f64, f64) = (10.0, 1e6);
+
+    /// Whether the node is on.
+    pub fn is_on(&self) -> bool {
+        self.capacity_ratio != 0.0
+    }
+}
+
 /// Physical parameters of the reservoir model.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReservoirParams {
@@ -70,6 +120,8 @@ pub struct ReservoirParams {
     pub discharge_coeff: f64,
     /// Optional mechanisms (see the module documentation for the supported ones).
     pub ext: Extensions,
+    /// The wall as a second thermal node ([`WallNode::OFF`]: none).
+    pub wall: WallNode,
 }
 
 impl ReservoirParams {
@@ -85,6 +137,20 @@ impl ReservoirParams {
         // The mechanisms' ranges at this model's time scale (the brake twin's are for a 60 s
         // release); the laminar leak is also bounded through its gain in [`ReservoirCoeffs::new`].
         self.ext.validate_in(|d| d.reservoir)?;
+        if self.wall.is_on() {
+            let w = self.wall;
+            within(
+                &[
+                    (w.capacity_ratio, WallNode::CAPACITY_RATIO.0, WallNode::CAPACITY_RATIO.1),
+                    (w.cooling_s, WallNode::COOLING_S.0, WallNode::COOLING_S.1),
+                ],
+                ParamError::Reservoir,
+            )?;
+            // The node exchanges heat with the gas through the heat transfer's τ.
+            if self.ext[HeatTransfer] <= 0.0 {
+                return Err(ParamError::Reservoir);
+            }
+        }
         Ok(())
     }
 }
@@ -98,6 +164,8 @@ impl ReservoirParams {
 /// | `laminar` | Q40 | laminar leak increment per substep per bar g |
 /// | `line` | [`LineCoeffs`] | delay (loading only) and lag of the compressor flow |
 /// | `heat_rate` | Q30 | h/τ of the wall heat transfer (0 = adiabatic base) |
+/// | `wall_gain` | Q30 | ε h /(τ p_ref): the wall's warming per substep per bar of p/θ and unit θ − θ_w |
+/// | `wall_cooling` | Q30 | h/τ_w: the wall's cooling to ambient per substep (0 = no wall node) |
 /// | `sensor` | [`SensorCoeffs`] | transducer |
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct ReservoirCoeffs {
@@ -106,6 +174,8 @@ pub struct ReservoirCoeffs {
     laminar: Q<i64, 40>,
     line: LineCoeffs,
     heat_rate: Q<i64, 30>,
+    wall_gain: Q<i64, 30>,
+    wall_cooling: Q<i64, 30>,
     sensor: SensorCoeffs,
 }
 
@@ -131,6 +201,12 @@ impl ReservoirCoeffs {
             laminar: Q::from_f64(laminar),
             line: LineCoeffs::new(e[TransportDelay], e[ValveLag], h),
             heat_rate: heat_rate(e[HeatTransfer], h),
+            wall_gain: if p.wall.is_on() {
+                Q::from_f64(p.wall.capacity_ratio * h / (e[HeatTransfer] * WALL_REF_BAR)).max(Q(1))
+            } else {
+                Q::ZERO
+            },
+            wall_cooling: if p.wall.is_on() { heat_rate(p.wall.cooling_s, h) } else { Q::ZERO },
             sensor: SensorCoeffs::new(e[SensorLag], e[SensorOffset], e[SensorGain], h),
         })
     }
@@ -143,26 +219,30 @@ pub struct Reservoir {
     coeffs: ReservoirCoeffs,
     /// Reservoir pressure, bar abs.
     p: PressureQ24,
-    /// Gas temperature over the wall temperature.
+    /// Gas temperature over the ambient (reference) temperature.
     theta: Q<i64, 24>,
+    /// Wall temperature over the ambient temperature (1 without a wall node), in Q40: its
+    /// increments per substep are ~10⁻⁵, and Q24 would round each by up to 0.6 %.
+    wall: Q<i64, 40>,
     line: ValveLine,
     /// Transducer state (lagged pressure), bar abs.
     sensed: Q<i64, 24>,
 }
 
 impl Reservoir {
-    /// A reservoir at atmosphere, compressor unloaded for long, gas at the wall temperature.
+    /// A reservoir at atmosphere, compressor unloaded for long, gas and wall at ambient.
     pub fn new(params: &ReservoirParams) -> Result<Self, ParamError> {
         let coeffs = ReservoirCoeffs::new(params)?;
         let one = PressureQ24::ATMOSPHERE;
-        Ok(Self { coeffs, p: one, theta: Q::ONE, line: ValveLine::CLOSED, sensed: one.q() })
+        Ok(Self { coeffs, p: one, theta: Q::ONE, wall: WALL_ONE, line: ValveLine::CLOSED, sensed: one.q() })
     }
 
     /// Restarts from a transducer reading (bar abs): the pressure and the transducer state move
     /// together until the transducer reads `reading`, keeping the lag between them (a fresh
     /// model's transducer is settled). `settle`: also put the gas at the wall temperature and
     /// the compressor line at rest (unloaded), as after a long pause; otherwise both keep their
-    /// state (a correction in the middle of a cycle).
+    /// state (a correction in the middle of a cycle). The wall node keeps its temperature either
+    /// way: it is the slow state that carries from one cycle to the next.
     pub fn restart(&mut self, reading: PressureQ24, settle: bool) {
         let target = self.coeffs.sensor.pressure_for_reading(reading).q();
         let now = self.coeffs.sensor.pressure_for_reading(self.reading()).q();
@@ -170,7 +250,7 @@ impl Reservoir {
         self.p = PressureQ24::from_q(self.p.q() + shift).max(PressureQ24(0));
         self.sensed += shift;
         if settle {
-            self.theta = Q::ONE;
+            self.theta = self.wall.rescale();
             self.line = ValveLine::CLOSED;
         }
     }
@@ -185,9 +265,29 @@ impl Reservoir {
         self.coeffs.sensor.read(self.sensed)
     }
 
-    /// Gas temperature over the wall temperature (1 on the adiabatic base).
+    /// Gas temperature over the ambient temperature (1 on the adiabatic base).
     pub fn theta(&self) -> Q<i64, 24> {
         self.theta
+    }
+
+    /// Wall temperature over the ambient temperature (1 without a wall node).
+    pub fn wall_theta(&self) -> Q<i64, 24> {
+        self.wall.rescale()
+    }
+
+    /// Puts the wall node at `theta` (over the ambient temperature), e.g. at the temperature it
+    /// reaches while the compressor cycles; the gas and everything else keep their state. No
+    /// effect without a wall node.
+    pub fn set_wall_theta(&mut self, theta: Q<i64, 24>) {
+        if self.has_wall_node() {
+            self.wall = theta.clamp(Q(1 << 22), Q(1 << 26)).rescale();
+        }
+    }
+
+    /// Whether the model has a wall node: a state that outlives a compressor cycle, so a run
+    /// that starts in the middle of cycling must first bring it to its cycling temperature.
+    pub fn has_wall_node(&self) -> bool {
+        self.coeffs.wall_cooling != Q::ZERO
     }
 
     /// Advances one substep with the compressor `loaded` (as commanded) delivering air at
@@ -220,7 +320,25 @@ impl Reservoir {
         let (vent_energy, vent_mass) = vent_increments(p, c.c_vent, c.laminar, theta, sqrt_theta, thermal);
         energy -= vent_energy;
         mass -= vent_mass;
+        let wall_on = c.wall_cooling != Q::ZERO;
+        let wall: Q<i64, 24> = self.wall.rescale();
+        if wall_on {
+            // The chamber's heat term pulls θ toward 1; a warm wall adds p (θ_w − 1)/θ · h/τ,
+            // formed in Q40 (products in i128: p and θ_w − 1 are bounded only by the clamps).
+            let excess: Q<i64, 24> = (wall - Q::ONE).div_trunc(theta);
+            let per_bar: Q<i64, 40> = excess.mul_round(c.heat_rate);
+            energy += p.q().wide_mul_floor::<40, 40>(per_bar);
+        }
         let (p_new, theta_new) = chamber_substep(p, theta, energy, mass, Q::ONE, Q::ZERO, c.heat_rate);
+        if wall_on {
+            // dθ_w = ε h/(τ p_ref) · (p/θ) · (θ − θ_w) − h/τ_w · (θ_w − 1), from this substep's
+            // start (explicit, like the chamber).
+            let mass_rel: Q<i64, 24> = p.q().div_trunc(theta);
+            let drive: Q<i64, 40> = mass_rel.mul_round::<24, 40>(theta - wall);
+            let warming: Q<i64, 40> = drive.wide_mul_floor(c.wall_gain);
+            let cooling: Q<i64, 40> = (self.wall - WALL_ONE).wide_mul_floor(c.wall_cooling);
+            self.wall = (self.wall + warming - cooling).clamp(Q(1 << 38), Q(1 << 42));
+        }
         if c.sensor.lags() {
             self.sensed = c.sensor.lag_substep(self.sensed, p.q(), p_new.q());
         } else {
@@ -254,6 +372,7 @@ mod tests {
             outlet: Meters::from_mm(0.5),
             discharge_coeff: 0.8,
             ext: Extensions::NONE,
+            wall: WallNode::OFF,
         }
     }
 
@@ -312,6 +431,60 @@ mod tests {
         assert!(bar(r.pressure()) < vent_only - 0.01, "{} vs {vent_only}", bar(r.pressure()));
         let theta = r.theta().to_f64();
         assert!((theta - 1.0).abs() < 0.01, "θ {theta} back at the wall after 6 τ");
+    }
+
+    #[test]
+    fn a_wall_node_stores_the_heat_and_gives_it_back_slowly() {
+        let mut one = params();
+        one.ext[HeatTransfer] = 40.0;
+        let mut two = one;
+        two.wall = WallNode { capacity_ratio: 0.5, cooling_s: 3000.0 };
+        let (mut a, mut b) = (Reservoir::new(&one).unwrap(), Reservoir::new(&two).unwrap());
+        assert!(!a.has_wall_node() && b.has_wall_node());
+        let start = PressureQ24::from_bar_g(crate::BarG(8.0));
+        a.restart(start, true);
+        b.restart(start, true);
+        let hot = KelvinQ8::from_celsius(80.0);
+        for _ in 0..180 {
+            a.update(true, hot);
+            b.update(true, hot);
+        }
+        // The gas warmed the wall, which now sits between ambient and the gas.
+        assert!(b.wall_theta() > Q::ONE && b.wall_theta() < b.theta(), "{:?} {:?}", b.wall_theta(), b.theta());
+        assert_eq!(a.wall_theta(), Q::ONE);
+        // Five minutes after unloading the one-node gas is back at ambient; with the wall node
+        // it is still warm, so the pressure is higher, and it keeps falling for longer.
+        for _ in 0..600 {
+            a.update(false, hot);
+            b.update(false, hot);
+        }
+        assert!((a.theta().to_f64() - 1.0).abs() < 0.002, "{}", a.theta().to_f64());
+        assert!(b.theta().to_f64() > 1.003, "{}", b.theta().to_f64());
+        assert!(bar(b.pressure()) > bar(a.pressure()) + 0.02);
+        let wall_then = b.wall_theta();
+        for _ in 0..1200 {
+            b.update(false, hot);
+        }
+        assert!(b.wall_theta() < wall_then, "the wall cools to ambient");
+        // Settling puts the gas at the wall, not at ambient; the wall keeps its temperature.
+        let wall = b.wall_theta();
+        b.restart(start, true);
+        assert_eq!((b.theta(), b.wall_theta()), (wall, wall));
+        b.set_wall_theta(Q::ONE);
+        assert_eq!(b.wall_theta(), Q::ONE);
+    }
+
+    #[test]
+    fn a_wall_node_needs_heat_transfer_and_its_ranges() {
+        let mut p = params();
+        p.wall = WallNode { capacity_ratio: 0.5, cooling_s: 3000.0 };
+        assert_eq!(Reservoir::new(&p), Err(ParamError::Reservoir), "no heat transfer to couple it");
+        p.ext[HeatTransfer] = 40.0;
+        assert!(Reservoir::new(&p).is_ok());
+        p.wall.cooling_s = 1.0;
+        assert_eq!(Reservoir::new(&p), Err(ParamError::Reservoir));
+        p.wall = WallNode { capacity_ratio: f64::NAN, cooling_s: 3000.0 };
+        assert_eq!(Reservoir::new(&p), Err(ParamError::Reservoir));
     }
 
     #[test]
@@ -382,6 +555,7 @@ mod tests {
         p.outlet = Meters::from_mm(1.0);
         p.ext[LaminarLeak] = 1.1;
         p.ext[HeatTransfer] = 5.0;
+        p.wall = WallNode { capacity_ratio: WallNode::CAPACITY_RATIO.1, cooling_s: WallNode::COOLING_S.0 };
         let mut r = Reservoir::new(&p).unwrap();
         for delivery in [KelvinQ8(i32::MAX), KelvinQ8(i32::MIN), KelvinQ8(0)] {
             for _ in 0..20_000 {

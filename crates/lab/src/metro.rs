@@ -50,10 +50,11 @@ use crate::audit::{
 };
 use crate::random::{normal_pair, unit};
 use anyhow::{Context, Result};
+use pbm::fixed::Q;
 use pbm::mechanism::Extensions;
 use pbm::mechanism::Mechanism;
 use pbm::params::{KAPPA, TEMPERATURE_K};
-use pbm::reservoir::{fill_rate_bar_per_s, vent_rate_per_s, Reservoir, ReservoirParams, RESERVOIR_SUBSTEP_S};
+use pbm::reservoir::{fill_rate_bar_per_s, vent_rate_per_s, Reservoir, ReservoirParams, WallNode, RESERVOIR_SUBSTEP_S};
 use pbm::twin::laminar_gain;
 use pbm::{BarG, KelvinQ8, Meters, PressureQ24};
 use rand_chacha::ChaCha8Rng;
@@ -142,6 +143,7 @@ pub fn metro_params(u: &[f64], effects: &[(Mechanism, f64)]) -> ReservoirParams 
         outlet: Meters::from_mm(0.15 * (5.0f64 / 0.15).powf(at(1))),
         discharge_coeff: METRO_DISCHARGE_COEFF,
         ext,
+        wall: pbm::reservoir::WallNode::OFF,
     }
 }
 
@@ -154,6 +156,41 @@ trait MetroModel {
     fn step(&mut self, loaded: bool, delivery_c: f64);
     /// What the transducer reads now, bar g.
     fn reading(&self) -> f64;
+    /// Whether the model has a state that outlives a compressor cycle (the wall node), which
+    /// [`spin_up`] must bring to its cycling temperature first.
+    fn has_slow_state(&self) -> bool;
+    /// The wall node's temperature over ambient (1 without one).
+    fn wall_theta(&self) -> f64;
+    /// Puts the wall node at `theta` over ambient.
+    fn set_wall_theta(&mut self, theta: f64);
+}
+
+/// A record starts while the compressor has been cycling for hours, so a wall node is warm,
+/// at a temperature nobody measured. Rather than fit it, [`spin_up`] puts the wall at the
+/// temperature that repeating the record's first complete cycle brings it to: three cycles
+/// give the wall temperatures w₁, w₂, w₃ at their ends, which approach that temperature
+/// geometrically (the wall is a first-order store, nearly linear over a cycle), so Aitken's
+/// extrapolation w₃ − (w₃ − w₂)² / (w₃ − 2w₂ + w₁) gives it even when τ_w spans many cycles;
+/// a fourth cycle then settles the gas to it. Returns whether it ran; a model without a slow
+/// state is left as it is.
+fn spin_up<M: MetroModel>(rows: &[MetroRow], model: &mut M) -> bool {
+    if !model.has_slow_state() {
+        return false;
+    }
+    let Some(&(l, _, n)) = complete_cycles(rows).first() else { return false };
+    let cycle = &rows[l - 1..n];
+    let mut w = [0.0; 3];
+    for wk in &mut w {
+        drive(cycle, model, &Switches::MIDPOINT, &[]);
+        *wk = model.wall_theta();
+    }
+    let (d1, d2) = (w[1] - w[0], w[2] - w[1]);
+    let ratio = d2 / d1;
+    if d1 != 0.0 && ratio.is_finite() && (0.0..0.999).contains(&ratio) {
+        model.set_wall_theta(w[2] + d2 * ratio / (1.0 - ratio));
+        drive(cycle, model, &Switches::MIDPOINT, &[]);
+    }
+    true
 }
 
 impl MetroModel for Reservoir {
@@ -165,6 +202,15 @@ impl MetroModel for Reservoir {
     }
     fn reading(&self) -> f64 {
         Reservoir::reading(self).to_bar_g().0
+    }
+    fn has_slow_state(&self) -> bool {
+        self.has_wall_node()
+    }
+    fn wall_theta(&self) -> f64 {
+        Reservoir::wall_theta(self).to_f64()
+    }
+    fn set_wall_theta(&mut self, theta: f64) {
+        Reservoir::set_wall_theta(self, Q::from_f64(theta));
     }
 }
 
@@ -236,6 +282,11 @@ impl Switches {
         self.0.get(j).map_or(n / 2, |&k| k.min(n))
     }
 
+    /// The switches after the first `k` (a run that starts later in the record).
+    fn skip(&self, k: usize) -> Switches {
+        Switches(self.0.get(k..).map(<[usize]>::to_vec).unwrap_or_default())
+    }
+
     /// Seconds after the start of its interval at which each switch is taken (midpoints when
     /// not estimated), for `rows`.
     pub fn seconds(&self, rows: &[MetroRow]) -> Vec<f64> {
@@ -270,13 +321,21 @@ pub fn estimate_switches(rows: &[MetroRow], params: &ReservoirParams, events: &[
     let mut bounds: Vec<usize> = std::iter::once(0).chain(starts.iter().copied()).collect();
     bounds.push(rows.len());
     bounds.dedup();
+    // A model with a wall node carries its wall from cycle to cycle: each segment starts from
+    // the state the segments before it (with their estimated switches) left, from the spun-up
+    // first complete cycle on. Without one, every segment starts from a fresh model, as it
+    // always did (the restart settles all else). Rows before the first complete cycle are no
+    // model's to follow ([`model_start`]).
+    let lead = model_start(rows);
+    let mut carried = Reservoir::new(params).ok()?;
+    let warm = spin_up(rows, &mut carried);
     for seg in bounds.windows(2) {
         let (a, b) = (seg[0], seg[1]);
-        let inside: Vec<usize> =
-            (0..intervals.len()).filter(|&j| (a..b.saturating_sub(1)).contains(&intervals[j].0)).collect();
-        if inside.is_empty() {
+        if a < lead {
             continue;
         }
+        let inside: Vec<usize> =
+            (0..intervals.len()).filter(|&j| (a..b.saturating_sub(1)).contains(&intervals[j].0)).collect();
         let rows_seg = &rows[a..b];
         let anchors: Vec<usize> = events
             .iter()
@@ -285,14 +344,21 @@ pub fn estimate_switches(rows: &[MetroRow], params: &ReservoirParams, events: &[
             .filter(|r| (a..b).contains(r))
             .map(|r| r - a)
             .collect();
+        let start = if warm { carried } else { Reservoir::new(params).ok()? };
+        let local_of = |at: &[usize]| Switches(inside.iter().map(|&j| at[j]).collect());
+        if inside.is_empty() {
+            if warm {
+                drive(rows_seg, &mut carried, &local_of(&at), &anchors);
+            }
+            continue;
+        }
         let cost = |at: &[usize]| -> Option<f64> {
-            let local = Switches(inside.iter().map(|&j| at[j]).collect());
-            let m = drive(rows_seg, &mut Reservoir::new(params).ok()?, &local, &anchors);
+            let m = drive(rows_seg, &mut start.clone(), &local_of(at), &anchors);
             Some(
                 m.iter()
                     .zip(rows_seg)
                     .enumerate()
-                    .filter(|(i, _)| !in_event(events, a + i))
+                    .filter(|(i, _)| a + i >= lead && !in_event(events, a + i))
                     .map(|(_, (m, r))| (m - r.tp3_bar).powi(2))
                     .sum(),
             )
@@ -317,8 +383,33 @@ pub fn estimate_switches(rows: &[MetroRow], params: &ReservoirParams, events: &[
                 break;
             }
         }
+        if warm {
+            drive(rows_seg, &mut carried, &local_of(&at), &anchors);
+        }
     }
     Some(Switches(at))
+}
+
+/// The first row a model follows: the row before the first complete cycle's loading. Before it
+/// the record begins in the middle of a cycle, with the gas (and a wall node) at temperatures
+/// nobody measured, so the audit neither fits nor judges those rows (for every candidate alike,
+/// so their residuals stay comparable). 0 without a complete cycle.
+pub fn model_start(rows: &[MetroRow]) -> usize {
+    complete_cycles(rows).first().map_or(0, |&(l, _, _)| l - 1)
+}
+
+/// Runs a model along the rows: [`drive`] from the first row, or, for a model with a slow state,
+/// [`spin_up`] then [`drive`] from [`model_start`] (the rows before it read as measured).
+fn run_model<M: MetroModel>(rows: &[MetroRow], model: &mut M, switches: &Switches, anchors: &[usize]) -> Vec<f64> {
+    if !spin_up(rows, model) {
+        return drive(rows, model, switches, anchors);
+    }
+    let lead = model_start(rows);
+    let skipped = rows.get(..lead + 1).map_or(0, |r| r.windows(2).filter(|w| w[0].loaded != w[1].loaded).count());
+    let shifted: Vec<usize> = anchors.iter().filter(|&&a| a >= lead).map(|a| a - lead).collect();
+    let mut out: Vec<f64> = rows[..lead].iter().map(|r| r.tp3_bar).collect();
+    out.extend(drive(&rows[lead..], model, &switches.skip(skipped), &shifted));
+    out
 }
 
 /// TP3 at the row times (bar g, as the transducer reads it) from the core's fixed-point
@@ -348,7 +439,7 @@ pub fn simulate_around(
 ) -> Option<Vec<f64>> {
     let mut model = Reservoir::new(params).ok()?;
     let anchors: Vec<usize> = events.iter().filter(|e| !e.recovered).map(|e| e.rows.1).collect();
-    Some(drive(rows, &mut model, switches, &anchors))
+    Some(run_model(rows, &mut model, switches, &anchors))
 }
 
 /// NMSE (%) of `curve` over the rows where `observed` is a number (outside the events).
@@ -376,6 +467,8 @@ struct ReferenceReservoir {
     p: f64,
     /// Gas temperature, K.
     temp: f64,
+    /// Wall temperature, K ([`pbm::reservoir::WallNode`]; the ambient without one).
+    wall: f64,
     /// Transducer state, bar g.
     sensed: f64,
     /// Delivery the reservoir sees, and a commanded change still travelling (elapsed s, state).
@@ -394,6 +487,7 @@ impl ReferenceReservoir {
             laminar: laminar_gain(params.ext[Mechanism::LaminarLeak], TEMPERATURE_K, params.volume_m3, 1.0),
             p: 1.0,
             temp: TEMPERATURE_K,
+            wall: TEMPERATURE_K,
             sensed: 0.0,
             loaded_eff: false,
             pending: None,
@@ -409,7 +503,7 @@ impl MetroModel for ReferenceReservoir {
         self.sensed += shift;
         self.p = (self.p + shift).max(0.0);
         if settle {
-            self.temp = TEMPERATURE_K;
+            self.temp = self.wall;
             self.pending = None;
             self.loaded_eff = false;
         }
@@ -451,8 +545,17 @@ impl MetroModel for ReferenceReservoir {
             let q_out = leak * p / theta.sqrt() + q_lam; // mass flows on the T0 basis
             let e_out = leak * p * theta.sqrt() + q_lam * theta;
             let tc = delivery_c + 273.15;
-            let dp = (q_in * tc / t0 - e_out + p * (t0 - self.temp) / (self.temp * e[Mechanism::HeatTransfer])) * h;
+            let tau = e[Mechanism::HeatTransfer];
+            let dp = (q_in * tc / t0 - e_out + p * (self.wall - self.temp) / (self.temp * tau)) * h;
             let dm_rel = (q_in - q_out) * h * theta / (KAPPA * p);
+            let w = self.params.wall;
+            if w.is_on() {
+                // Heat the gas gives the wall (m c_v (T − T_w)/τ) over the wall's capacity, and the
+                // wall's own cooling to ambient.
+                let mass_rel = p / theta / pbm::reservoir::WALL_REF_BAR;
+                self.wall +=
+                    (w.capacity_ratio * mass_rel * (self.temp - self.wall) / tau - (self.wall - t0) / w.cooling_s) * h;
+            }
             self.temp = (self.temp * (1.0 + dp / p - dm_rel)).clamp(75.0, 1200.0);
             dp
         } else {
@@ -474,11 +577,22 @@ impl MetroModel for ReferenceReservoir {
         let e = &self.params.ext;
         e[Mechanism::SensorOffset] + e[Mechanism::SensorGain] * self.sensed
     }
+    fn has_slow_state(&self) -> bool {
+        self.params.wall.is_on()
+    }
+    fn wall_theta(&self) -> f64 {
+        self.wall / TEMPERATURE_K
+    }
+    fn set_wall_theta(&mut self, theta: f64) {
+        if self.params.wall.is_on() {
+            self.wall = theta * TEMPERATURE_K;
+        }
+    }
 }
 
 /// TP3 at the row times from the `f64` reference (to check [`simulate`]).
 pub fn simulate_reference(rows: &[MetroRow], params: &ReservoirParams) -> Vec<f64> {
-    drive(rows, &mut ReferenceReservoir::new(params), &Switches::MIDPOINT, &[])
+    run_model(rows, &mut ReferenceReservoir::new(params), &Switches::MIDPOINT, &[])
 }
 
 /// A synthetic MetroPT-3-like record from the `f64` reference (with any mechanisms on in
@@ -508,8 +622,12 @@ fn synthetic_rows_with(
     let documented_leak = model.leak;
     model.restart(8.5, true);
     let (mut t, mut loaded, mut oil_c) = (0.0, true, 60.0);
-    let mut rows = Vec::with_capacity(n_rows);
-    for i in 0..n_rows {
+    // A wall node takes hours to reach its cycling temperature, as in a real record that starts
+    // while the compressor has been cycling for long: the rows of the first 30,000 s (10 τ_w of
+    // the tests' wall) are dropped.
+    let warm_up = if params.wall.is_on() { 3000 } else { 0 };
+    let mut rows = Vec::with_capacity(n_rows + warm_up);
+    for i in 0..n_rows + warm_up {
         let (noise, _) = normal_pair(&mut rng);
         rows.push(MetroRow { t_s: t, tp3_bar: model.reading() + sigma_bar * noise, loaded, oil_c });
         let dt = if i % 10 == 9 { 9.0 } else { 10.0 };
@@ -528,6 +646,11 @@ fn synthetic_rows_with(
             oil_c += (target - oil_c) * RESERVOIR_SUBSTEP_S / tau;
         }
         t += dt;
+    }
+    let t0 = rows.get(warm_up).map_or(0.0, |r| r.t_s);
+    rows.drain(..warm_up.min(rows.len()));
+    for r in &mut rows {
+        r.t_s -= t0;
     }
     rows
 }
@@ -685,6 +808,9 @@ pub struct MetroFit {
     /// Mechanisms, magnitudes and 1-σ uncertainties (Gauss–Newton covariance at the optimum,
     /// inflated by n/n_eff as in the brake audit).
     pub effects: Vec<(Mechanism, f64, f64)>,
+    /// The wall node ([`WallNode`], [`WALL_HEAT`]) with the 1-σ of ε and τ_w, when the candidate
+    /// has one.
+    pub wall: Option<(WallNode, [f64; 2])>,
     /// RSS (σ units).
     pub rss: f64,
     /// ΔBIC vs base.
@@ -739,6 +865,9 @@ pub struct MetroOutcome {
     pub switch_s: Vec<f64>,
     /// One-off consumption events, left out of every fit and figure ([`one_off_events`]).
     pub events: Vec<OneOffEvent>,
+    /// What any model driven by COMP can reach on held-out cycles of this record
+    /// ([`RecordFloor`]); `None` with fewer than three complete cycles.
+    pub record_floor: Option<RecordFloor>,
 }
 
 /// The unmodelled pressure rate of the chosen model, aligned on the compressor's switching and
@@ -1034,30 +1163,96 @@ struct MetroFitter<'a> {
     sigma: f64,
     /// One-off events: their rows are left out, and the model restarts after a lasting one.
     events: Vec<OneOffEvent>,
+    /// The first row a model follows ([`model_start`]).
+    lead: usize,
 }
 
 /// A fitted candidate: the optimum and the switches it was run with.
 type FitResult = (crate::audit::LmResult, Switches);
 
-impl MetroFitter<'_> {
-    /// The mechanisms `effects` at their magnitudes in `u` (after the two base coordinates).
-    fn on_of(u: &[f64], effects: &[Mechanism]) -> Vec<(Mechanism, f64)> {
-        effects.iter().enumerate().map(|(i, &e)| (e, metro_value(e, u.get(2 + i).copied().unwrap_or(0.0)))).collect()
+/// A candidate model: library mechanisms on the base, and whether the wall is a second thermal
+/// node ([`WallNode`]). Its unit box: compressor, outlet, one coordinate per mechanism, then ε
+/// and τ_w of the wall ([`wall_at`]).
+#[derive(Debug, Clone, PartialEq)]
+struct Candidate {
+    effects: Vec<Mechanism>,
+    wall: bool,
+}
+
+impl Candidate {
+    fn of(effects: &[Mechanism]) -> Self {
+        Self { effects: effects.to_vec(), wall: false }
     }
 
+    /// The mechanisms at their magnitudes in `u` (after the two base coordinates).
+    fn on(&self, u: &[f64]) -> Vec<(Mechanism, f64)> {
+        self.effects
+            .iter()
+            .enumerate()
+            .map(|(i, &e)| (e, metro_value(e, u.get(2 + i).copied().unwrap_or(0.0))))
+            .collect()
+    }
+
+    /// Index of the wall's first coordinate.
+    fn wall_index(&self) -> usize {
+        2 + self.effects.len()
+    }
+
+    /// The core reservoir's parameters at `u`.
+    fn params(&self, u: &[f64]) -> ReservoirParams {
+        let mut p = metro_params(u, &self.on(u));
+        if self.wall {
+            p.wall = wall_at(u.get(self.wall_index()..).unwrap_or(&[]));
+        }
+        p
+    }
+
+    /// Name in reports: the mechanisms joined by `+`, then `wall_heat`.
+    fn name(&self) -> String {
+        if self.effects.is_empty() && !self.wall {
+            return "base".to_owned();
+        }
+        let mut names: Vec<&str> = self.effects.iter().map(|e| e.name()).collect();
+        if self.wall {
+            names.push(WALL_HEAT);
+        }
+        names.join("+")
+    }
+}
+
+/// Name of the wall node in the metro audit's reports ([`WallNode`]).
+pub const WALL_HEAT: &str = "wall_heat";
+/// Range of the wall's heat-capacity ratio ε in the fit (log scale).
+pub const WALL_CAPACITY_SEARCH: (f64, f64) = (0.01, 3.0);
+/// Range of the wall's cooling time τ_w in the fit, s (log scale).
+pub const WALL_COOLING_SEARCH_S: (f64, f64) = (60.0, 20_000.0);
+
+/// The wall node at the unit-box coordinates `u` = (ε, τ_w), each on a log scale over its search
+/// range.
+fn wall_at(u: &[f64]) -> WallNode {
+    let log = |i: usize, (lo, hi): (f64, f64)| lo * (hi / lo).powf(u.get(i).copied().unwrap_or(0.5).clamp(0.0, 1.0));
+    WallNode { capacity_ratio: log(0, WALL_CAPACITY_SEARCH), cooling_s: log(1, WALL_COOLING_SEARCH_S) }
+}
+
+/// The unit-box coordinate of a value on a log scale over `(lo, hi)`.
+fn log_coordinate(v: f64, (lo, hi): (f64, f64)) -> f64 {
+    ((v / lo).ln() / (hi / lo).ln()).clamp(0.0, 1.0)
+}
+
+impl MetroFitter<'_> {
     /// The candidate's curve at `u` ([`simulate_around`] the events).
-    fn simulate(&self, u: &[f64], effects: &[Mechanism], sw: &Switches) -> Option<Vec<f64>> {
-        simulate_around(self.rows, &metro_params(u, &Self::on_of(u, effects)), sw, &self.events)
+    fn simulate(&self, u: &[f64], c: &Candidate, sw: &Switches) -> Option<Vec<f64>> {
+        simulate_around(self.rows, &c.params(u), sw, &self.events)
     }
 
     /// Residual (σ units) of the rows `keep` admits (all with `None`) outside the events.
-    fn resid(&self, u: &[f64], effects: &[Mechanism], sw: &Switches, keep: Option<&[bool]>) -> Option<Vec<f64>> {
-        let m = self.simulate(u, effects, sw)?;
+    fn resid(&self, u: &[f64], c: &Candidate, sw: &Switches, keep: Option<&[bool]>) -> Option<Vec<f64>> {
+        let m = self.simulate(u, c, sw)?;
         let r: Vec<f64> = m
             .iter()
             .zip(&self.measured)
             .enumerate()
-            .filter(|(i, _)| keep.is_none_or(|k| k[*i]) && !in_event(&self.events, *i))
+            .filter(|(i, _)| *i >= self.lead && keep.is_none_or(|k| k[*i]) && !in_event(&self.events, *i))
             .map(|(_, (a, b))| (a - b) / self.sigma)
             .collect();
         r.iter().all(|v| v.is_finite()).then_some(r)
@@ -1065,14 +1260,14 @@ impl MetroFitter<'_> {
 
     fn fit_at(
         &self,
-        effects: &[Mechanism],
+        c: &Candidate,
         starts: &[Vec<f64>],
         sw: &Switches,
         keep: Option<&[bool]>,
     ) -> Option<crate::audit::LmResult> {
         starts
             .par_iter()
-            .filter_map(|x0| levenberg_marquardt(&|u: &[f64]| self.resid(u, effects, sw, keep), x0, 60))
+            .filter_map(|x0| levenberg_marquardt(&|u: &[f64]| self.resid(u, c, sw, keep), x0, 60))
             .min_by(|a, b| a.rss.total_cmp(&b.rss))
     }
 
@@ -1082,12 +1277,12 @@ impl MetroFitter<'_> {
     /// stays fair and the switch timing no longer pulls the parameters. A cycle's switches move
     /// only that cycle's rows (the model restarts before each loading phase), so the switches
     /// of a held-out cycle do not touch the fit.
-    fn fit(&self, effects: &[Mechanism], starts: Vec<Vec<f64>>, keep: Option<&[bool]>) -> Option<FitResult> {
-        let mut lm = self.fit_at(effects, &starts, &Switches::MIDPOINT, keep)?;
+    fn fit(&self, c: &Candidate, starts: Vec<Vec<f64>>, keep: Option<&[bool]>) -> Option<FitResult> {
+        let mut lm = self.fit_at(c, &starts, &Switches::MIDPOINT, keep)?;
         let mut sw = Switches::MIDPOINT;
         for _ in 0..SWITCH_ROUNDS {
-            let next = estimate_switches(self.rows, &metro_params(&lm.x, &Self::on_of(&lm.x, effects)), &self.events)?;
-            match self.fit_at(effects, std::slice::from_ref(&lm.x), &next, keep) {
+            let next = estimate_switches(self.rows, &c.params(&lm.x), &self.events)?;
+            match self.fit_at(c, std::slice::from_ref(&lm.x), &next, keep) {
                 Some(refit) if refit.rss < lm.rss => {
                     lm = refit;
                     sw = next;
@@ -1101,7 +1296,7 @@ impl MetroFitter<'_> {
     /// Leave-one-cycle-out validation of a candidate fitted at `x` on every row: for each
     /// complete cycle, the candidate is refitted on the other rows (from `x`) and predicts the
     /// cycle; `None` with fewer than [`HELD_OUT_MIN_CYCLES`] complete cycles.
-    fn held_out(&self, effects: &[Mechanism], x: &[f64], in_sample: &[f64]) -> Option<HeldOut> {
+    fn held_out(&self, c: &Candidate, x: &[f64], in_sample: &[f64]) -> Option<HeldOut> {
         let cycles = complete_cycles(self.rows);
         if cycles.len() < HELD_OUT_MIN_CYCLES {
             return None;
@@ -1113,8 +1308,8 @@ impl MetroFitter<'_> {
                 // The row before the loading is the cycle's initial condition (the model restarts
                 // on it), so the held-out rows are the loading start up to the next one.
                 let keep: Vec<bool> = (0..n).map(|i| !(l..next).contains(&i)).collect();
-                let (lm, sw) = self.fit(effects, vec![x.to_vec()], Some(&keep))?;
-                let curve = self.simulate(&lm.x, effects, &sw)?;
+                let (lm, sw) = self.fit(c, vec![x.to_vec()], Some(&keep))?;
+                let curve = self.simulate(&lm.x, c, &sw)?;
                 Some((l, next, curve))
             })
             .collect();
@@ -1336,6 +1531,73 @@ pub fn one_off_events(rows: &[MetroRow]) -> Vec<OneOffEvent> {
     events
 }
 
+/// Point-to-point scatter of TP3 while the compressor is loaded, bar, from the record alone: the
+/// rate changes from one sampling interval to the next inside each loading phase (without the
+/// intervals where the compressor switches or the delivery starts), less their mean per phase (the smooth
+/// slowing of the fill), over √6 (the second difference of white noise has 6 times its
+/// variance). In MetroPT-3 it is ≈ 20× the transducer noise: the pressure rises 0.2 bar between
+/// rows, and a second of sampling jitter or a pulsing delivery moves a row by 0.02 bar. No
+/// model driven by a 10 s COMP record can follow it. `None` without three such intervals.
+pub fn loaded_jitter_bar(rows: &[MetroRow]) -> Option<f64> {
+    let mut dev = Vec::new();
+    let mut i = 1;
+    while i < rows.len() {
+        if !rows[i].loaded || rows[i - 1].loaded {
+            i += 1;
+            continue;
+        }
+        let end = (i..rows.len()).find(|&k| !rows[k].loaded).unwrap_or(rows.len());
+        // Rate changes between consecutive intervals of rows i..end, inner ones only.
+        let rate = |k: usize| (rows[k + 1].tp3_bar - rows[k].tp3_bar) / (rows[k + 1].t_s - rows[k].t_s).max(1e-9);
+        // Intervals i..end−1 lie inside the phase; the first of them also holds the transport
+        // delay's end (the delivery starts in it), so the changes start from the second.
+        let d: Vec<f64> =
+            (i + 2..end.saturating_sub(1)).map(|k| (rate(k) - rate(k - 1)) * (rows[k + 1].t_s - rows[k].t_s)).collect();
+        if d.len() >= 2 {
+            let m = d.iter().sum::<f64>() / d.len() as f64;
+            dev.extend(d.iter().map(|x| x - m));
+        }
+        i = end;
+    }
+    (dev.len() >= 3).then(|| (dev.iter().map(|x| x * x).sum::<f64>() / dev.len() as f64 / 6.0).sqrt())
+}
+
+/// What this record lets any model driven by COMP reach on held-out cycles: the NMSE (SPEC §6
+/// Eq. 16, over the held-out rows) that the loaded phases' own scatter ([`loaded_jitter_bar`])
+/// and the decays' cycle-to-cycle spread ([`CycleFloor::spread_bar`]) alone leave. A model
+/// within about 1.5× of it has nothing systematic left that the record can show.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RecordFloor {
+    /// [`loaded_jitter_bar`].
+    pub loaded_jitter_bar: f64,
+    /// The decays' spread between cycles at equal time since the switch, bar.
+    pub decay_spread_bar: f64,
+    /// The NMSE those two leave on the complete cycles' rows, %.
+    pub nmse_pct: f64,
+}
+
+/// [`RecordFloor`] of `rows` with the cycle-to-cycle spread `spread_bar`; `None` without
+/// complete cycles or a loaded-phase scatter.
+fn record_floor(rows: &[MetroRow], events: &[OneOffEvent], spread_bar: f64) -> Option<RecordFloor> {
+    let jitter = loaded_jitter_bar(rows)?;
+    let (mut sum, mut n) = (0.0, 0usize);
+    for (l, _, next) in complete_cycles(rows) {
+        for i in (l..next).filter(|&i| !in_event(events, i)) {
+            let p = rows[i].tp3_bar;
+            if p > pbm::metrics::NMSE_MIN_BAR_G {
+                let sd = if rows[i].loaded { jitter } else { spread_bar };
+                sum += (sd / p).powi(2);
+                n += 1;
+            }
+        }
+    }
+    (n > 0).then(|| RecordFloor {
+        loaded_jitter_bar: jitter,
+        decay_spread_bar: spread_bar,
+        nmse_pct: 100.0 * (sum / n as f64).sqrt(),
+    })
+}
+
 /// Fewest complete compressor cycles for a held-out validation ([`HeldOut`]): each fold fits on
 /// the others, so at least two must remain.
 pub const HELD_OUT_MIN_CYCLES: usize = 3;
@@ -1381,34 +1643,66 @@ pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcom
     let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
     let sigma = noise_sigma(&measured).max(1e-3);
     let events = one_off_events(rows);
-    let fitter = MetroFitter { rows, measured: measured.clone(), sigma, events: events.clone() };
-    // The measurements a model is judged on: NaN on the events' rows (the summaries skip them).
-    let observed: Vec<f64> =
-        measured.iter().enumerate().map(|(i, &m)| if in_event(&events, i) { f64::NAN } else { m }).collect();
-    let on_of = MetroFitter::on_of;
-    let fit = |effects: &[Mechanism], starts: Vec<Vec<f64>>| fitter.fit(effects, starts, None);
+    let lead = model_start(rows);
+    let fitter = MetroFitter { rows, measured: measured.clone(), sigma, events: events.clone(), lead };
+    // The measurements a model is judged on: NaN before the first complete cycle and on the
+    // events' rows (the summaries skip them).
+    let observed: Vec<f64> = measured
+        .iter()
+        .enumerate()
+        .map(|(i, &m)| if i < lead || in_event(&events, i) { f64::NAN } else { m })
+        .collect();
+    let fit = |c: &Candidate, starts: Vec<Vec<f64>>| fitter.fit(c, starts, None);
     let base_starts: Vec<Vec<f64>> = [0.2, 0.5, 0.8].iter().flat_map(|&a| [0.3, 0.6].map(|b| vec![a, b])).collect();
-    let (base_lm, base_sw) = fit(&[], base_starts).context("base model cannot be fitted")?;
-    let mut fits: Vec<(Vec<Mechanism>, crate::audit::LmResult, Switches)> = METRO_EFFECTS
+    let (base_lm, base_sw) = fit(&Candidate::of(&[]), base_starts).context("base model cannot be fitted")?;
+    let mut fits: Vec<(Candidate, crate::audit::LmResult, Switches)> = METRO_EFFECTS
         .par_iter()
         .filter_map(|&e| {
             let starts = metro_starts(e).into_iter().map(|s| vec![base_lm.x[0], base_lm.x[1], s]).collect();
-            fit(&[e], starts).map(|(lm, sw)| (vec![e], lm, sw))
+            let c = Candidate::of(&[e]);
+            fit(&c, starts).map(|(lm, sw)| (c, lm, sw))
         })
         .collect();
     fits.sort_by(|a, b| a.1.rss.total_cmp(&b.1.rss));
-    let top: Vec<(Mechanism, f64)> = fits.iter().take(3).map(|(e, lm, _)| (e[0], lm.x[2])).collect();
+    let top: Vec<(Mechanism, f64)> = fits.iter().take(3).map(|(c, lm, _)| (c.effects[0], lm.x[2])).collect();
     let mut pair_fits = Vec::new();
     for i in 0..top.len() {
         for j in i + 1..top.len() {
-            let effects = vec![top[i].0, top[j].0];
+            let c = Candidate::of(&[top[i].0, top[j].0]);
             let starts = vec![vec![base_lm.x[0], base_lm.x[1], top[i].1, top[j].1]];
-            if let Some((lm, sw)) = fit(&effects, starts) {
-                pair_fits.push((effects, lm, sw));
+            if let Some((lm, sw)) = fit(&c, starts) {
+                pair_fits.push((c, lm, sw));
             }
         }
     }
     fits.extend(pair_fits);
+    // The wall as a second thermal node, on every fitted candidate with heat transfer (its τ
+    // couples gas and wall), from that candidate's optimum.
+    let wall_fits: Vec<(Candidate, crate::audit::LmResult, Switches)> = fits
+        .par_iter()
+        .filter(|(c, _, _)| c.effects.contains(&Mechanism::HeatTransfer))
+        .filter_map(|(c, lm, _)| {
+            let wc = Candidate { effects: c.effects.clone(), wall: true };
+            // Gas and wall share the heat: with a wall that stores it, the gas's own τ comes out
+            // longer than the one-node fit's, so starts also stretch it (two optima otherwise
+            // trap the fit: a small fast wall near the one-node τ, a large slow one beyond it).
+            let ht = c.effects.iter().position(|&e| e == Mechanism::HeatTransfer).map(|i| 2 + i);
+            let starts = [(0.1, 300.0, 1.0), (0.5, 3000.0, 1.0), (0.5, 3000.0, 2.5), (1.0, 10_000.0, 2.5)]
+                .iter()
+                .map(|&(eps, tau_w, stretch)| {
+                    let mut x = lm.x.clone();
+                    if let Some(i) = ht {
+                        let tau = metro_value(Mechanism::HeatTransfer, x[i]) * stretch;
+                        x[i] = scope(Mechanism::HeatTransfer).coordinate_of(tau);
+                    }
+                    x.extend([log_coordinate(eps, WALL_CAPACITY_SEARCH), log_coordinate(tau_w, WALL_COOLING_SEARCH_S)]);
+                    x
+                })
+                .collect();
+            fit(&wc, starts).map(|(lm, sw)| (wc, lm, sw))
+        })
+        .collect();
+    fits.extend(wall_fits);
     let n = measured.len();
     let best = fits.iter().map(|f| &f.1).chain([&base_lm]).min_by(|a, b| a.rss.total_cmp(&b.rss)).cloned();
     let best = best.context("no fit")?;
@@ -1420,9 +1714,9 @@ pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcom
     let rho = crate::audit::acf(&best.residual, 1).first().copied().unwrap_or(0.0).clamp(0.0, 0.995);
     let inflation = ((1.0 + rho) / (1.0 - rho)).max(n as f64 / n_eff);
     let dbic = |r0: f64, r1: f64, dk: usize| n_eff * (r0 / r1.max(1e-300)).ln() - dk as f64 * n_eff.ln();
-    let mk = |effects: &[Mechanism], lm: &crate::audit::LmResult, sw: &Switches| {
-        let on = on_of(&lm.x, effects);
-        let params = metro_params(&lm.x, &on);
+    let mk = |c: &Candidate, lm: &crate::audit::LmResult, sw: &Switches| {
+        let on = c.on(&lm.x);
+        let params = c.params(&lm.x);
         // 1-σ from s² (JᵀJ)⁻¹ with s² = RSS/(n − k) inflated for the residual correlation.
         let dims = lm.x.len();
         let s2 = lm.rss / n.saturating_sub(dims).max(1) as f64 * inflation;
@@ -1432,37 +1726,55 @@ pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcom
             .enumerate()
             .map(|(i, &(e, v))| (e, v, (diag[2 + i] * s2).max(0.0).sqrt() * metro_slope(e, lm.x[2 + i]).abs()))
             .collect();
+        // The wall's coordinates are logarithmic: d value / d u = value · ln(hi/lo).
+        let wall = c.wall.then(|| {
+            let k = c.wall_index();
+            let sd = |i: usize, v: f64, (lo, hi): (f64, f64)| {
+                (diag.get(i).copied().unwrap_or(f64::INFINITY) * s2).max(0.0).sqrt() * v * (hi / lo).ln()
+            };
+            let w = params.wall;
+            (w, [sd(k, w.capacity_ratio, WALL_CAPACITY_SEARCH), sd(k + 1, w.cooling_s, WALL_COOLING_SEARCH_S)])
+        });
         let curve = simulate_around(rows, &params, sw, &events).unwrap_or_default();
         MetroFit {
-            name: if effects.is_empty() {
-                "base".to_owned()
-            } else {
-                effects.iter().map(|e| e.name()).collect::<Vec<_>>().join("+")
-            },
+            name: c.name(),
             nmse_pct: nmse_outside(&observed, &curve),
             effects: eff,
+            wall,
             rss: lm.rss,
-            delta_bic: dbic(base_lm.rss, lm.rss, effects.len()),
-            held_out: if validate { fitter.held_out(effects, &lm.x, &curve) } else { None },
+            delta_bic: dbic(base_lm.rss, lm.rss, lm.x.len() - 2),
+            held_out: if validate { fitter.held_out(c, &lm.x, &curve) } else { None },
             params,
             curve,
             switches: sw.clone(),
         }
     };
-    let base = mk(&[], &base_lm, &base_sw);
+    let base = mk(&Candidate::of(&[]), &base_lm, &base_sw);
     let mut ranking: Vec<MetroFit> = fits.par_iter().map(|(e, lm, sw)| mk(e, lm, sw)).collect();
     ranking.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
     let mut chosen = base.clone();
-    if let Some(s) = ranking.iter().find(|c| c.effects.len() == 1) {
+    if let Some(s) = ranking.iter().find(|c| c.effects.len() == 1 && c.wall.is_none()) {
         if s.delta_bic > BIC_THRESHOLD && base.rss / s.rss >= MIN_RSS_RATIO {
             chosen = s.clone();
             let pair = ranking
                 .iter()
-                .filter(|c| c.effects.len() == 2 && c.effects.iter().any(|e| e.0 == s.effects[0].0))
+                .filter(|c| c.effects.len() == 2 && c.wall.is_none() && c.effects.iter().any(|e| e.0 == s.effects[0].0))
                 .max_by(|a, b| a.delta_bic.total_cmp(&b.delta_bic));
             if let Some(p) = pair {
                 if dbic(s.rss, p.rss, 1) > BIC_THRESHOLD && s.rss / p.rss >= MIN_RSS_RATIO {
                     chosen = p.clone();
+                }
+            }
+            // The wall node on the chosen mechanisms, by the same two tests for its two
+            // parameters.
+            let same = |c: &MetroFit| {
+                c.wall.is_some()
+                    && c.effects.len() == chosen.effects.len()
+                    && c.effects.iter().zip(&chosen.effects).all(|(a, b)| a.0 == b.0)
+            };
+            if let Some(w) = ranking.iter().find(|c| same(c)) {
+                if dbic(chosen.rss, w.rss, 2) > BIC_THRESHOLD && chosen.rss / w.rss >= MIN_RSS_RATIO {
+                    chosen = w.clone();
                 }
             }
         }
@@ -1487,6 +1799,8 @@ pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcom
         chosen_phase_rms: phase_rms(rows, &observed, &chosen.curve),
         missing: aligned_rate(rows, &observed, &chosen.curve),
         cycle_floor: cycle_floor(rows, &observed, &chosen.curve),
+        record_floor: cycle_floor(rows, &observed, &chosen.curve)
+            .and_then(|f| record_floor(rows, &events, f.spread_bar)),
         events,
         switch_s: chosen.switches.seconds(rows),
         switch_timing_floor_bar: {
@@ -1538,9 +1852,9 @@ impl MetroOutcome {
             "cause: {}{}  NMSE {:.3} % → {:.3} % (ratio {:.1})",
             self.cause,
             self.chosen
-                .effects
+                .json_effects()
                 .iter()
-                .map(|(e, v, u)| format!("  {} = {v:.2} ± {u:.2} {}", e.name(), e.unit()))
+                .map(|(name, unit, v, u)| format!("  {name} = {v:.3} ± {u:.3} {unit}"))
                 .collect::<String>(),
             self.base.nmse_pct,
             self.chosen.nmse_pct,
@@ -1556,6 +1870,14 @@ impl MetroOutcome {
                  fitted to all):",
                 h.cycles, h.rows
             );
+            if let Some(f) = self.record_floor {
+                let _ = writeln!(
+                    s,
+                    "  floor of this record          {:.3} %   (what no model driven by COMP can beat: {:.4} bar of \
+                     scatter while loaded, {:.4} bar between cycles in the decays)",
+                    f.nmse_pct, f.loaded_jitter_bar, f.decay_spread_bar
+                );
+            }
             for f in std::iter::once(&self.base).chain(&self.ranking) {
                 if let Some(h) = f.held_out {
                     let _ = writeln!(
@@ -1652,6 +1974,18 @@ impl MetroOutcome {
                     }
                 ));
             }
+            if let (Some(h), Some(f)) = (self.chosen.held_out, self.record_floor) {
+                text.push_str(&format!(
+                    "; on cycles it was not fitted to it reaches NMSE {:.3} % ({:.1}× this record's floor of {:.3} %: \
+                     the loaded phases scatter by {:.3} bar from row to row and the decays by {:.3} bar from cycle to \
+                     cycle, which no model driven by COMP can follow)",
+                    h.nmse_pct,
+                    h.nmse_pct / f.nmse_pct,
+                    f.nmse_pct,
+                    f.loaded_jitter_bar,
+                    f.decay_spread_bar
+                ));
+            }
             text.push_str(&format!("; what is missing: {}", describe_aligned(&self.missing)));
         }
         text
@@ -1687,6 +2021,12 @@ impl MetroOutcome {
                 "sigmas": e.sigmas, "text": e.describe(),
             }))
             .collect::<Vec<_>>());
+        doc["record_floor"] = self.record_floor.map_or(serde_json::Value::Null, |f| {
+            serde_json::json!({
+                "nmse_pct": f.nmse_pct, "loaded_jitter_bar": f.loaded_jitter_bar,
+                "decay_spread_bar": f.decay_spread_bar,
+            })
+        });
         doc["held_out"] = serde_json::json!(std::iter::once(&self.base)
             .chain(&self.ranking)
             .filter_map(|f| f.held_out.map(|h| serde_json::json!({
@@ -1725,7 +2065,12 @@ impl RankedFit for MetroFit {
 impl MetroFit {
     /// (name, unit, magnitude, σ) of each mechanism.
     fn json_effects(&self) -> Vec<(&'static str, &'static str, f64, f64)> {
-        self.effects.iter().map(|(e, v, u)| (e.name(), e.unit(), *v, *u)).collect()
+        let mut out: Vec<_> = self.effects.iter().map(|(e, v, u)| (e.name(), e.unit(), *v, *u)).collect();
+        if let Some((w, [ue, ut])) = self.wall {
+            out.push(("wall_capacity_ratio", "ratio", w.capacity_ratio, ue));
+            out.push(("wall_cooling", "s", w.cooling_s, ut));
+        }
+        out
     }
 }
 
@@ -1868,6 +2213,7 @@ mod tests {
             let out = audit_metro_with(&rows, false).expect("audit runs");
             eprint!("{}", out.summary());
             assert!(out.cause.split('+').any(|c| c == "heat_transfer"), "{}", out.cause);
+            assert!(!out.cause.contains(WALL_HEAT), "{}", out.cause);
             assert!(out.residual_to_noise.1 > 3.0 * NOISE_FLOOR_RATIO, "{:?}", out.residual_to_noise);
             let floor = out.cycle_floor.expect("complete cycles");
             assert!(floor.cycles >= 3 && !floor.systematic(), "{floor:?}");
@@ -1875,6 +2221,37 @@ mod tests {
             let base = cycle_floor(&rows, &measured, &out.base.curve).expect("complete cycles");
             assert!(base.systematic(), "{base:?}");
             assert!(out.verdict_text().contains("within that variation"), "{}", out.verdict_text());
+        }
+    }
+
+    /// Issue 17: a wall that stores heat, hidden in records from the `f64` reference (seeds not
+    /// used elsewhere), is found as `wall_heat` on top of heat transfer, with its magnitudes,
+    /// and on cycles it was not fitted to the model is within 1.5× the record's floor, where the
+    /// one-node model is not. With identical cycles the magnitudes come out within 10 %; with
+    /// consumption varying ± 4 % between cycles (≈ the real record's spread) within 35 %, and
+    /// low: the fit's constant consumption leans on the slow wall. Records without a wall (the
+    /// test above's) never get one.
+    #[test]
+    fn a_hidden_wall_node_is_found_and_validated_on_held_out_cycles() {
+        let mut truth = metro_params(&SYNTHETIC_BASE_U, &[(Mechanism::HeatTransfer, 40.0)]);
+        truth.wall = WallNode { capacity_ratio: 0.5, cooling_s: 3000.0 };
+        for (seed, spread, tolerance) in [(31, 0.0, 0.1), (31, 0.04, 0.35), (32, 0.04, 0.35)] {
+            let rows = synthetic_rows_with(&truth, SYNTHETIC_ROWS, SYNTHETIC_SIGMA_BAR, seed, spread);
+            assert!(one_off_events(&rows).is_empty());
+            let out = audit_metro(&rows).expect("audit runs");
+            eprint!("{}", out.summary());
+            assert!(out.cause.starts_with("heat_transfer") && out.cause.ends_with(WALL_HEAT), "{}", out.cause);
+            let (w, _) = out.chosen.wall.expect("wall node");
+            let tau = out.chosen.effects.iter().find(|e| e.0 == Mechanism::HeatTransfer).expect("heat transfer").1;
+            for (got, want) in [(w.capacity_ratio, 0.5), (w.cooling_s, 3000.0), (tau, 40.0)] {
+                assert!((got / want - 1.0).abs() < tolerance, "seed {seed}: {got} vs {want}");
+            }
+            let floor = out.record_floor.expect("floor").nmse_pct;
+            let held = out.chosen.held_out.expect("held out").nmse_pct;
+            assert!(held < 1.5 * floor, "held out {held} vs floor {floor}");
+            let one_node =
+                out.ranking.iter().find(|f| f.name == "heat_transfer").and_then(|f| f.held_out).expect("one node");
+            assert!(one_node.nmse_pct > 1.5 * held, "{} vs {held}", one_node.nmse_pct);
         }
     }
 

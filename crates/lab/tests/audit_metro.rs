@@ -27,45 +27,55 @@ fn metro_audit_names_heat_transfer() {
     assert!(dir.path().join("metro_curves.svg").exists() && dir.path().join("metro_residual.svg").exists());
 }
 
-/// Issue 17: the real-data model is not at the noise floor, and the audit must say so instead
-/// of presenting heat transfer + delay as the whole story, and say what is still missing: an
-/// extra outflow one to three minutes after each unloading (the chosen model leaves
-/// −0.022 bar/min there, ≈ 12 standard errors) and less outflow than modelled late in the decay
-/// (8.1–8.4 bar). The compressor switches are estimated inside their 10 s sampling intervals,
-/// which halves the loading phase's error; the cycles, taken as replicates, differ by ≈ 8× the
-/// transducer noise (consumption the record does not hold), and the model's error common to all
-/// cycles is beyond that variation.
+/// Issue 17: the real-data model is not at the transducer's noise floor, and the audit must say
+/// so instead of presenting its cause as the whole story, say what is still missing, and show
+/// where the record's own floor lies. The one-node model left an extra outflow one to three
+/// minutes after each unloading; a wall that stores heat (`wall_heat`) takes most of it. The
+/// cycles, taken as replicates, differ by ≈ 5× the transducer noise (consumption the record does
+/// not hold) and the loaded phases scatter by ≈ 0.02 bar from row to row; the model predicts
+/// cycles it was not fitted to within 1.5× of the NMSE those two leave, and its error common to
+/// all cycles is within their variation.
 #[test]
 fn metro_audit_says_what_the_real_data_model_still_misses() {
     let (_, out) = audit_metro_file(Path::new(METRO)).expect("audit runs");
+    eprint!("{}", out.summary());
     let (base, chosen) = out.residual_to_noise;
-    assert!(chosen > pbm_lab::audit::NOISE_FLOOR_RATIO && chosen < 0.5 * base, "{base} → {chosen}");
+    assert!(chosen > pbm_lab::audit::NOISE_FLOOR_RATIO && chosen < 0.2 * base, "{base} → {chosen}");
+    assert_eq!(out.cause, "heat_transfer+transport_delay+wall_heat");
     let text = out.verdict_text();
-    assert!(text.contains("explains part"), "{text}");
-    let after_unloading: Vec<_> =
-        out.missing.iter().filter(|a| a.phase == "unloaded" && a.significant() && a.from_s < 240.0).collect();
-    assert!(
-        !after_unloading.is_empty() && after_unloading.iter().all(|a| a.mean_bar_per_min < 0.0),
-        "{:?}",
-        out.missing
-    );
-    assert!(text.contains("extra outflow from 60 to 180 s after the compressor unloads"), "{text}");
-    assert!(text.contains("less outflow than modelled from 1500 to 2100 s after the compressor unloads"), "{text}");
+    assert!(text.contains("explains part") && text.contains("what is missing"), "{text}");
     // With the switches estimated, the loaded phase's error is well under what the switch
-    // timing alone leaves at the midpoints (it was 0.058 bar, now 0.028 bar).
+    // timing alone leaves at the midpoints.
     let loaded_rms = out.chosen_phase_rms[0].1;
     assert!(loaded_rms <= 0.5 * out.switch_timing_floor_bar, "{loaded_rms} vs {}", out.switch_timing_floor_bar);
-    assert!(chosen < 0.25 * base, "{base} → {chosen}");
-    // The cycles as replicates: they differ well beyond the transducer noise, and the model's
-    // common error is beyond that.
+    // The decay after the first two minutes is within 5× the transducer noise (it was 11×).
+    assert!(out.chosen_phase_rms[2].1 < 5.0 * out.sigma, "{:?}", out.chosen_phase_rms);
     let floor = out.cycle_floor.expect("the extract holds four complete cycles");
     assert_eq!(floor.cycles, 4);
-    assert!(floor.spread_bar > 3.0 * out.sigma && floor.systematic(), "{floor:?}");
-    assert!(text.contains("the model still errs the same way in every cycle"), "{text}");
+    assert!(floor.spread_bar > 3.0 * out.sigma && !floor.systematic(), "{floor:?}");
+    assert!(text.contains("within that variation"), "{text}");
+    // The record's floor, and the held-out NMSE against it.
+    let record = out.record_floor.expect("floor");
+    assert!(record.loaded_jitter_bar > 10.0 * out.sigma, "{record:?}");
+    let held = out.chosen.held_out.expect("held out");
+    assert!(held.nmse_pct < 1.5 * record.nmse_pct, "{held:?} vs {record:?}");
+    assert!(
+        held.nmse_pct
+            < 0.8
+                * out
+                    .ranking
+                    .iter()
+                    .find(|f| f.name == "heat_transfer+transport_delay")
+                    .and_then(|f| f.held_out)
+                    .expect("one node")
+                    .nmse_pct
+    );
     let json = out.to_json();
     assert_eq!(json["explains_all"], false);
     assert!(json["unmodelled_rate"].as_array().is_some_and(|a| !a.is_empty()));
-    assert_eq!(json["cycle_floor"]["systematic"], true);
+    assert_eq!(json["cycle_floor"]["systematic"], false);
+    assert!(json["record_floor"]["nmse_pct"].as_f64().is_some_and(|v| v > 0.05));
+    assert!(json["held_out"].as_array().is_some_and(|a| a.len() == out.ranking.len() + 1));
     assert_eq!(json["switch_s"].as_array().map(Vec::len), Some(10));
 }
 
@@ -107,13 +117,24 @@ fn fixed_point_reservoir_matches_f64_reference() {
         vec![(Mechanism::LaminarLeak, 0.8)],
         vec![(Mechanism::HeatTransfer, 20.0), (Mechanism::TransportDelay, 9.3)],
     ];
-    for effects in cases {
-        let params = metro_params(&u, &effects);
+    // The wall node (`wall_heat`), a fast small one and a slow large one, each with the spin-up
+    // that puts it at its cycling temperature.
+    let walls = [
+        pbm::reservoir::WallNode { capacity_ratio: 0.1, cooling_s: 300.0 },
+        pbm::reservoir::WallNode { capacity_ratio: 1.5, cooling_s: 15_000.0 },
+    ];
+    let cases = cases
+        .into_iter()
+        .map(|e| (e, pbm::reservoir::WallNode::OFF))
+        .chain(walls.map(|w| (vec![(Mechanism::HeatTransfer, 40.0), (Mechanism::TransportDelay, 9.3)], w)));
+    for (effects, wall) in cases {
+        let mut params = metro_params(&u, &effects);
+        params.wall = wall;
         let fixed = simulate(&rows, &params).expect("parameters in range");
         let reference = simulate_reference(&rows, &params);
         let nmse = pbm::metrics::nmse_pct(&reference, &fixed).expect("nmse");
         let worst = fixed.iter().zip(&reference).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
-        eprintln!("{effects:?}: NMSE fixed vs f64 {nmse:.5} %, worst {worst:.5} bar");
+        eprintln!("{effects:?} {wall:?}: NMSE fixed vs f64 {nmse:.5} %, worst {worst:.5} bar");
         assert!(nmse < 0.005 && worst < 0.001, "{effects:?}: NMSE {nmse} %, worst {worst} bar");
     }
 }
@@ -208,16 +229,22 @@ fn one_off_events_are_told_from_what_every_cycle_does() {
     // The same dip in every cycle is no one-off event.
     let everywhere = one_off_events(&plant(&[0, 1, 2, 3], 700.0, 0.04, true));
     assert!(everywhere.iter().all(|e| e.cycle == 3 && e.since_unload_s > 1000.0), "{everywhere:?}");
-    // The audit of the record with the lasting loss names the same cause, with the same heat
-    // transfer time within its uncertainty: the event is not bent into a mechanism.
+    // The audit of the record with the lasting loss names the same cause, and the model it
+    // fits there predicts the clean record about as well as the clean model predicts cycles it
+    // was not fitted to (within 20 % of that held-out NMSE; measured 0.120 % against 0.107 %):
+    // the event is not bent into a mechanism. (The wall node's τ, ε and τ_w trade off along a
+    // valley, so the magnitudes themselves are compared through what they predict.)
     let (_, clean) = audit_metro_file(Path::new(METRO)).expect("audit runs");
     let planted = pbm_lab::metro::audit_metro(&plant(&[0], 700.0, 0.04, true)).expect("audit runs");
     assert_eq!(planted.cause, clean.cause);
-    let tau = |o: &pbm_lab::metro::MetroOutcome| {
-        o.chosen.effects.iter().find(|e| e.0 == Mechanism::HeatTransfer).map(|e| (e.1, e.2)).expect("heat transfer")
-    };
-    let ((a, ua), (b, ub)) = (tau(&clean), tau(&planted));
-    assert!((a - b).abs() <= 2.0 * (ua + ub), "{a} ± {ua} vs {b} ± {ub}");
+    let curve = pbm_lab::metro::simulate_around(&rows, &planted.chosen.params, &clean.chosen.switches, &clean.events)
+        .expect("runs");
+    let lead = pbm_lab::metro::model_start(&rows);
+    let judged = |i: &usize| *i >= lead && !clean.events.iter().any(|e| (e.rows.0..=e.rows.1).contains(i));
+    let (m, c): (Vec<f64>, Vec<f64>) = (0..rows.len()).filter(judged).map(|i| (rows[i].tp3_bar, curve[i])).unzip();
+    let nmse = pbm::metrics::nmse_pct(&m, &c).expect("rows");
+    let held = clean.chosen.held_out.expect("held out").nmse_pct;
+    assert!(nmse < 1.2 * held, "{nmse} vs {held}");
 }
 
 /// Records from the `f64` reference with noise and no event, on seeds nobody looked at: no event.

@@ -159,6 +159,7 @@ fn main() -> ! {
         outlet: Meters::from_mm(0.563),
         discharge_coeff: 0.8,
         ext: Extensions::NONE.with(Mechanism::HeatTransfer, 20.3).with(Mechanism::TransportDelay, 9.3),
+        wall: pbm::reservoir::WallNode::OFF,
     };
     let Ok(mut reservoir) = Reservoir::new(&metro) else {
         println!("bench: reservoir parameters rejected");
