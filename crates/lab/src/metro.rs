@@ -450,6 +450,53 @@ pub fn simulate_around(
     Some(run_model(rows, &mut model, switches, &anchors))
 }
 
+/// Why a fitted wall node (`with_wall`, on the mechanisms of `without`) is not credible, if it is
+/// not: a wall found by an independent tester's plants that have none (7 of 37 records) had its
+/// cooling time or capacity at an edge of the search range or undetermined (the fit using the
+/// node as a spare degree of freedom, not as a wall), or did not predict held-out cycles better.
+/// A wall must be determined ([`WALL_MAX_REL_SIGMA`]), sit inside its ranges, and cut the
+/// held-out NMSE by [`WALL_HELD_OUT_GAIN`].
+fn wall_not_credible(with_wall: &MetroFit, without: &MetroFit) -> Option<String> {
+    let (w, [se, st]) = with_wall.wall?;
+    if se >= WALL_MAX_REL_SIGMA * w.capacity_ratio || st >= WALL_MAX_REL_SIGMA * w.cooling_s {
+        return Some(format!(
+            "the data do not determine it (heat-capacity ratio {:.3} ± {se:.3}, cooling {:.0} ± {st:.0} s)",
+            w.capacity_ratio, w.cooling_s
+        ));
+    }
+    let near_edge = |v: f64, (lo, hi): (f64, f64)| {
+        let u = log_coordinate(v, (lo, hi));
+        !(0.02..=0.98).contains(&u)
+    };
+    if near_edge(w.capacity_ratio, WALL_CAPACITY_SEARCH) {
+        return Some(format!(
+            "its heat-capacity ratio {:.3} sits at the edge of {}–{}",
+            w.capacity_ratio, WALL_CAPACITY_SEARCH.0, WALL_CAPACITY_SEARCH.1
+        ));
+    }
+    if near_edge(w.cooling_s, WALL_COOLING_SEARCH_S) {
+        return Some(format!(
+            "its cooling time {:.0} s sits at the edge of {}–{} s",
+            w.cooling_s, WALL_COOLING_SEARCH_S.0, WALL_COOLING_SEARCH_S.1
+        ));
+    }
+    if let (Some(a), Some(b)) = (with_wall.held_out, without.held_out) {
+        if a.nmse_pct > WALL_HELD_OUT_GAIN * b.nmse_pct {
+            return Some(format!(
+                "it does not predict held-out cycles better ({:.3} % against {:.3} % without it)",
+                a.nmse_pct, b.nmse_pct
+            ));
+        }
+    }
+    None
+}
+
+/// A wall node must bring the held-out NMSE to this share of the model without it or below.
+pub const WALL_HELD_OUT_GAIN: f64 = 0.85;
+/// A wall node whose 1 σ (the larger of the covariance's and the jackknife's) reaches this share
+/// of either magnitude is not determined by the data.
+pub const WALL_MAX_REL_SIGMA: f64 = 0.75;
+
 /// NMSE (%) of `curve` over the rows where `observed` is a number (outside the events).
 fn nmse_outside(observed: &[f64], curve: &[f64]) -> f64 {
     let (m, c): (Vec<f64>, Vec<f64>) = observed.iter().zip(curve).filter(|(o, _)| o.is_finite()).unzip();
@@ -1304,38 +1351,52 @@ impl MetroFitter<'_> {
     /// Leave-one-cycle-out validation of a candidate fitted at `x` on every row: for each
     /// complete cycle, the candidate is refitted on the other rows (from `x`) and predicts the
     /// cycle; `None` with fewer than [`HELD_OUT_MIN_CYCLES`] complete cycles.
-    fn held_out(&self, c: &Candidate, x: &[f64], in_sample: &[f64]) -> Option<HeldOut> {
+    ///
+    /// Returns the validation and each fold's optimum (for the jackknife uncertainty).
+    fn held_out(&self, c: &Candidate, x: &[f64], in_sample: &[f64]) -> Option<(HeldOut, Vec<Vec<f64>>)> {
         let cycles = complete_cycles(self.rows);
         if cycles.len() < HELD_OUT_MIN_CYCLES {
             return None;
         }
+        // Cycles are dealt to at most HELD_OUT_MAX_FOLDS folds in turn (1, 2, …, k, 1, 2, …), so a
+        // long record costs k refits, not one per cycle, and each fold spans the whole record.
+        let k = cycles.len().min(HELD_OUT_MAX_FOLDS);
         let n = self.rows.len();
-        let folds: Vec<Option<(usize, usize, Vec<f64>)>> = cycles
-            .par_iter()
-            .map(|&(l, _, next)| {
+        // Per fold: its held-out (first, end) rows, the predicted curve and the fold's optimum.
+        type Fold = (Vec<(usize, usize)>, Vec<f64>, Vec<f64>);
+        let folds: Vec<Option<Fold>> = (0..k)
+            .into_par_iter()
+            .map(|f| {
                 // The row before the loading is the cycle's initial condition (the model restarts
                 // on it), so the held-out rows are the loading start up to the next one.
-                let keep: Vec<bool> = (0..n).map(|i| !(l..next).contains(&i)).collect();
+                let out: Vec<(usize, usize)> =
+                    cycles.iter().skip(f).step_by(k).map(|&(l, _, next)| (l, next)).collect();
+                let keep: Vec<bool> = (0..n).map(|i| !out.iter().any(|&(l, next)| (l..next).contains(&i))).collect();
                 let (lm, sw) = self.fit(c, vec![x.to_vec()], Some(&keep))?;
                 let curve = self.simulate(&lm.x, c, &sw)?;
-                Some((l, next, curve))
+                Some((out, curve, lm.x))
             })
             .collect();
-        let (mut measured, mut predicted, mut fitted) = (Vec::new(), Vec::new(), Vec::new());
+        let (mut measured, mut predicted, mut fitted, mut optima) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
         for fold in folds {
-            let (l, next, curve) = fold?;
-            for i in (l..next).filter(|&i| !in_event(&self.events, i)) {
-                measured.push(self.measured[i]);
-                predicted.push(*curve.get(i)?);
-                fitted.push(*in_sample.get(i)?);
+            let (out, curve, x) = fold?;
+            for (l, next) in out {
+                for i in (l..next).filter(|&i| !in_event(&self.events, i)) {
+                    measured.push(self.measured[i]);
+                    predicted.push(*curve.get(i)?);
+                    fitted.push(*in_sample.get(i)?);
+                }
             }
+            optima.push(x);
         }
-        Some(HeldOut {
+        let held = HeldOut {
             cycles: cycles.len(),
+            folds: k,
             rows: measured.len(),
             nmse_pct: pbm::metrics::nmse_pct(&measured, &predicted)?,
             in_sample_nmse_pct: pbm::metrics::nmse_pct(&measured, &fitted)?,
-        })
+        };
+        Some((held, optima))
     }
 }
 
@@ -1607,13 +1668,18 @@ fn record_floor(rows: &[MetroRow], events: &[OneOffEvent], spread_bar: f64) -> O
 }
 
 /// Fewest complete compressor cycles for a held-out validation ([`HeldOut`]): each fold fits on
-/// the others, so at least two must remain.
+/// the others, so at least two must remain. The audit refuses a record with fewer.
 pub const HELD_OUT_MIN_CYCLES: usize = 3;
+/// Most folds of the held-out validation: more cycles are dealt to this many folds.
+pub const HELD_OUT_MAX_FOLDS: usize = 5;
 
-/// Leave-one-cycle-out validation of a fitted candidate (issue: a model is judged on the
-/// compressor cycles it was not fitted to). Every complete cycle (a loading phase and the decay
-/// to the next one) is held out in turn: the candidate is refitted on the rest of the record and
-/// predicts that cycle from the pressure at its start, the same initial condition the fit uses.
+/// Held-out validation of a fitted candidate (issue 17: a model is judged on the compressor
+/// cycles it was not fitted to). Every complete cycle (a loading phase and the decay to the next
+/// one) is held out once, in at most [`HELD_OUT_MAX_FOLDS`] folds (one cycle per fold up to that
+/// many cycles): the candidate is refitted on the rest of the record and predicts the fold's
+/// cycles from the pressure at each one's start, the same initial condition the fit uses. The
+/// folds' optima also give each magnitude a jackknife uncertainty (the spread the cycles
+/// themselves cause), which the reported 1 σ never falls below.
 /// Only the two compressor switch instants of the held-out cycle come from its own rows (COMP
 /// gives them only to its 10 s sampling, [`estimate_switches`]); every model parameter comes
 /// from the other cycles.
@@ -1621,6 +1687,8 @@ pub const HELD_OUT_MIN_CYCLES: usize = 3;
 pub struct HeldOut {
     /// Complete cycles, each held out once.
     pub cycles: usize,
+    /// Folds they were dealt to (one refit each; [`HELD_OUT_MAX_FOLDS`] at most).
+    pub folds: usize,
     /// Rows predicted (the complete cycles' rows).
     pub rows: usize,
     /// NMSE of the held-out predictions over those rows, %.
@@ -1639,6 +1707,49 @@ fn complete_cycles(rows: &[MetroRow]) -> Vec<(usize, usize, usize)> {
         .collect()
 }
 
+/// Gauge pressures a compressed-air reservoir record may hold, bar g (a reading outside is not a
+/// reservoir pressure in bar: another unit, a sign error, a broken channel).
+pub const TP3_RANGE_BAR_G: (f64, f64) = (-0.5, 20.0);
+/// Smallest median pressure rise over the loading phases, bar: a compressor that loads without
+/// raising the pressure is not what the model describes (a frozen or disconnected channel).
+pub const MIN_LOADED_RISE_BAR: f64 = 0.05;
+
+/// Refuses a record the audit cannot judge, with the reason: a pressure outside
+/// [`TP3_RANGE_BAR_G`], fewer than [`HELD_OUT_MIN_CYCLES`] complete compressor cycles (no cycle
+/// to hold out, and a cause named on one cycle is a guess), or loading phases that do not raise
+/// the pressure.
+pub fn check_record(rows: &[MetroRow]) -> Result<()> {
+    let (lo, hi) = TP3_RANGE_BAR_G;
+    if let Some((i, r)) = rows.iter().enumerate().find(|(_, r)| !(lo..=hi).contains(&r.tp3_bar)) {
+        anyhow::bail!(
+            "TP3 reads {} bar at row {} ({} s): outside {lo}…{hi} bar g, not a compressed-air reservoir pressure \
+             in bar",
+            r.tp3_bar,
+            i + 1,
+            r.t_s
+        );
+    }
+    let cycles = complete_cycles(rows);
+    if cycles.len() < HELD_OUT_MIN_CYCLES {
+        anyhow::bail!(
+            "the record holds {} complete compressor cycles (a loading phase and the decay to the next loading); \
+             the audit needs at least {HELD_OUT_MIN_CYCLES}, to validate every model on cycles it was not fitted to",
+            cycles.len()
+        );
+    }
+    let mut rises: Vec<f64> = cycles.iter().map(|&(l, u, _)| rows[u].tp3_bar - rows[l - 1].tp3_bar).collect();
+    rises.sort_by(f64::total_cmp);
+    let median = rises[rises.len() / 2];
+    if median < MIN_LOADED_RISE_BAR {
+        anyhow::bail!(
+            "the pressure does not rise while the compressor is loaded (median rise {median:.3} bar over {} cycles): \
+             a frozen or disconnected TP3, or COMP not the compressor's load signal",
+            cycles.len()
+        );
+    }
+    Ok(())
+}
+
 /// The metro audit ([`MetroOutcome`]) with every fitted candidate validated on held-out
 /// compressor cycles ([`HeldOut`]).
 pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
@@ -1648,6 +1759,7 @@ pub fn audit_metro(rows: &[MetroRow]) -> Result<MetroOutcome> {
 /// [`audit_metro`], with the held-out validation only when `validate` (the synthetic sweep
 /// scores the verdict and skips it: it refits every candidate once per cycle).
 pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcome> {
+    check_record(rows)?;
     let measured: Vec<f64> = rows.iter().map(|r| r.tp3_bar).collect();
     let sigma = noise_sigma(&measured).max(1e-3);
     let events = one_off_events(rows);
@@ -1725,14 +1837,34 @@ pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcom
     let mk = |c: &Candidate, lm: &crate::audit::LmResult, sw: &Switches| {
         let on = c.on(&lm.x);
         let params = c.params(&lm.x);
-        // 1-σ from s² (JᵀJ)⁻¹ with s² = RSS/(n − k) inflated for the residual correlation.
+        let curve = simulate_around(rows, &params, sw, &events).unwrap_or_default();
+        let validated = if validate { fitter.held_out(c, &lm.x, &curve) } else { None };
+        // Jackknife 1-σ over the held-out folds: sqrt((k − 1)/k · Σ (θ_f − θ̄)²), for each magnitude
+        // read out of the folds' optima by `value`.
+        let jackknife = |value: &dyn Fn(&[f64]) -> f64| -> f64 {
+            let Some((_, optima)) = &validated else { return 0.0 };
+            let v: Vec<f64> = optima.iter().map(|x| value(x)).collect();
+            let k = v.len() as f64;
+            if k < 2.0 {
+                return 0.0;
+            }
+            let mean = v.iter().sum::<f64>() / k;
+            ((k - 1.0) / k * v.iter().map(|x| (x - mean).powi(2)).sum::<f64>()).sqrt()
+        };
+        // 1-σ from s² (JᵀJ)⁻¹ with s² = RSS/(n − k) inflated for the residual correlation, and
+        // never below the jackknife's: the cycles differ more than the noise, and the
+        // covariance alone claimed ten times too small an error for the wall node.
         let dims = lm.x.len();
         let s2 = lm.rss / n.saturating_sub(dims).max(1) as f64 * inflation;
         let diag = inverse_diag(&lm.jtj, dims);
         let eff: Vec<(Mechanism, f64, f64)> = on
             .iter()
             .enumerate()
-            .map(|(i, &(e, v))| (e, v, (diag[2 + i] * s2).max(0.0).sqrt() * metro_slope(e, lm.x[2 + i]).abs()))
+            .map(|(i, &(e, v))| {
+                let gn = (diag[2 + i] * s2).max(0.0).sqrt() * metro_slope(e, lm.x[2 + i]).abs();
+                let jk = jackknife(&|x| metro_value(e, x.get(2 + i).copied().unwrap_or(0.0)));
+                (e, v, gn.max(jk))
+            })
             .collect();
         // The wall's coordinates are logarithmic: d value / d u = value · ln(hi/lo).
         let wall = c.wall.then(|| {
@@ -1741,9 +1873,16 @@ pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcom
                 (diag.get(i).copied().unwrap_or(f64::INFINITY) * s2).max(0.0).sqrt() * v * (hi / lo).ln()
             };
             let w = params.wall;
-            (w, [sd(k, w.capacity_ratio, WALL_CAPACITY_SEARCH), sd(k + 1, w.cooling_s, WALL_COOLING_SEARCH_S)])
+            let jk_eps = jackknife(&|x| wall_at(x.get(k..).unwrap_or(&[])).capacity_ratio);
+            let jk_tau = jackknife(&|x| wall_at(x.get(k..).unwrap_or(&[])).cooling_s);
+            (
+                w,
+                [
+                    sd(k, w.capacity_ratio, WALL_CAPACITY_SEARCH).max(jk_eps),
+                    sd(k + 1, w.cooling_s, WALL_COOLING_SEARCH_S).max(jk_tau),
+                ],
+            )
         });
-        let curve = simulate_around(rows, &params, sw, &events).unwrap_or_default();
         MetroFit {
             name: c.name(),
             nmse_pct: nmse_outside(&observed, &curve),
@@ -1751,7 +1890,7 @@ pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcom
             wall,
             rss: lm.rss,
             delta_bic: dbic(base_lm.rss, lm.rss, lm.x.len() - 2),
-            held_out: if validate { fitter.held_out(c, &lm.x, &curve) } else { None },
+            held_out: validated.map(|(h, _)| h),
             params,
             curve,
             switches: sw.clone(),
@@ -1761,6 +1900,7 @@ pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcom
     let mut ranking: Vec<MetroFit> = fits.par_iter().map(|(e, lm, sw)| mk(e, lm, sw)).collect();
     ranking.sort_by(|a, b| b.delta_bic.total_cmp(&a.delta_bic));
     let mut chosen = base.clone();
+    let mut wall_note = None;
     if let Some(s) = ranking.iter().find(|c| c.effects.len() == 1 && c.wall.is_none()) {
         if s.delta_bic > BIC_THRESHOLD && base.rss / s.rss >= MIN_RSS_RATIO {
             chosen = s.clone();
@@ -1782,7 +1922,10 @@ pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcom
             };
             if let Some(w) = ranking.iter().find(|c| same(c)) {
                 if dbic(chosen.rss, w.rss, 2) > BIC_THRESHOLD && chosen.rss / w.rss >= MIN_RSS_RATIO {
-                    chosen = w.clone();
+                    match wall_not_credible(w, &chosen) {
+                        None => chosen = w.clone(),
+                        Some(why) => wall_note = Some(format!("{} fits better but is not named: {why}", w.name)),
+                    }
                 }
             }
         }
@@ -1790,10 +1933,14 @@ pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcom
     // The same honesty as the brake audit: a cause must at least halve the residual when it
     // does not reach the noise floor, and no cause is `none` only at the floor.
     let to_noise = |rss: f64| (rss / n.max(1) as f64).sqrt();
-    let mut note = None;
+    let mut note = wall_note;
     let (rb, rc) = (to_noise(base.rss), to_noise(chosen.rss));
     if !chosen.effects.is_empty() && crate::audit::explains_too_little(rb, rc) {
-        note = Some(format!("{} leaves {rc:.1}× of the base's {rb:.1}× the noise: too little explained", chosen.name));
+        let little = format!("{} leaves {rc:.1}× of the base's {rb:.1}× the noise: too little explained", chosen.name);
+        note = Some(match note {
+            Some(wall) => format!("{wall}; {little}"),
+            None => little,
+        });
         chosen = base.clone();
     }
     let residual_to_noise = (rb, to_noise(chosen.rss));
@@ -1874,9 +2021,9 @@ impl MetroOutcome {
         if let Some(h) = self.base.held_out {
             let _ = writeln!(
                 s,
-                "held out (each of the {} complete cycles predicted by a fit to the others, {} rows; NMSE held out vs \
-                 fitted to all):",
-                h.cycles, h.rows
+                "held out (each of the {} complete cycles predicted by a fit to the rest of the record, in {} folds, {} \
+                 rows; NMSE held out vs fitted to all):",
+                h.cycles, h.folds, h.rows
             );
             if let Some(f) = self.record_floor {
                 let _ = writeln!(
@@ -2038,7 +2185,7 @@ impl MetroOutcome {
         doc["held_out"] = serde_json::json!(std::iter::once(&self.base)
             .chain(&self.ranking)
             .filter_map(|f| f.held_out.map(|h| serde_json::json!({
-                "model": f.name, "cycles": h.cycles, "rows": h.rows,
+                "model": f.name, "cycles": h.cycles, "folds": h.folds, "rows": h.rows,
                 "nmse_pct": h.nmse_pct, "in_sample_nmse_pct": h.in_sample_nmse_pct,
             })))
             .collect::<Vec<_>>());

@@ -20,10 +20,13 @@ fn metro_audit_names_heat_transfer() {
     write_metro_outputs(&rows, &out, Some(&json), Some(dir.path())).expect("outputs");
     let text = std::fs::read_to_string(&json).expect("json");
     assert!(text.contains("\"nmse_base_pct\"") && text.contains("\"ranking\"") && text.contains("\"uncertainty\": ["));
-    // Each named magnitude is determined to better than ± 25 % (1 σ).
+    // Each named magnitude is determined to better than ± 50 % (1 σ: the larger of the
+    // covariance's and the jackknife's over the held-out cycles, which is the larger here).
     for (e, v, u) in &out.chosen.effects {
-        assert!(u.is_finite() && *u < 0.25 * v.abs(), "{} = {v} ± {u}", e.name());
+        assert!(u.is_finite() && *u < 0.5 * v.abs(), "{} = {v} ± {u}", e.name());
     }
+    let (w, [ue, ut]) = out.chosen.wall.expect("the wall node is named");
+    assert!(ue < 0.5 * w.capacity_ratio && ut < 0.5 * w.cooling_s, "{w:?} ± {ue}, {ut}");
     assert!(dir.path().join("metro_curves.svg").exists() && dir.path().join("metro_residual.svg").exists());
 }
 
@@ -255,4 +258,45 @@ fn clean_synthetic_records_hold_no_one_off_event() {
         let events = pbm_lab::metro::one_off_events(&rows);
         assert!(events.is_empty(), "seed {seed}: {events:?}");
     }
+}
+
+/// Records of an independent plant (tests/data/metro_independent, written from physics by a
+/// tester who did not read the audit): without a wall the audit had named `wall_heat` (7 of 37
+/// records, four times as "explains the discrepancy") with its cooling time at an edge of the
+/// search range or its magnitudes undetermined; a wall must now be determined, inside its
+/// ranges and better on held-out cycles. With a wall it is named, within 2 σ of the truth.
+#[test]
+fn the_wall_node_is_named_only_where_an_independent_plant_has_one() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/metro_independent");
+    for name in ["nowall_nw1.csv", "nowall_nw3.csv", "nowall_nw8.csv"] {
+        let (_, out) = audit_metro_file(&dir.join(name)).expect("audit runs");
+        assert!(!out.cause.contains("wall_heat"), "{name}: {}", out.cause);
+        assert!(out.cause.contains("heat_transfer"), "{name}: {}", out.cause);
+        assert!(
+            out.verdict_text().contains("wall_heat fits better but is not named"),
+            "{name}: {}",
+            out.verdict_text()
+        );
+    }
+    let (_, out) = audit_metro_file(&dir.join("wall_w1_s26.csv")).expect("audit runs");
+    let (w, [ue, ut]) = out.chosen.wall.expect("the wall is named");
+    assert!((w.capacity_ratio - 0.3).abs() < 2.0 * ue, "{w:?} ± {ue}");
+    assert!((w.cooling_s - 1000.0).abs() < 2.0 * ut, "{w:?} ± {ut}");
+}
+
+/// What the audit cannot judge is refused with the reason (an independent tester's garbage,
+/// planted here in the real record): no compressor switching, fewer than three complete cycles,
+/// a frozen channel, a pressure in the wrong unit or sign.
+#[test]
+fn records_the_audit_cannot_judge_are_refused() {
+    let rows = read_metro(Path::new(METRO)).expect("reads");
+    let refused = |rows: Vec<pbm_lab::metro::MetroRow>, why: &str| {
+        let err = pbm_lab::metro::audit_metro(&rows).expect_err("refused").to_string();
+        assert!(err.contains(why), "{err}");
+    };
+    refused(rows.iter().map(|r| pbm_lab::metro::MetroRow { loaded: false, ..*r }).collect(), "holds 0 complete");
+    refused(rows[..560].to_vec(), "holds 2 complete");
+    refused(rows.iter().map(|r| pbm_lab::metro::MetroRow { tp3_bar: 9.0, ..*r }).collect(), "does not rise");
+    refused(rows.iter().map(|r| pbm_lab::metro::MetroRow { tp3_bar: r.tp3_bar * 1000.0, ..*r }).collect(), "outside");
+    refused(rows.iter().map(|r| pbm_lab::metro::MetroRow { tp3_bar: -r.tp3_bar, ..*r }).collect(), "outside");
 }
