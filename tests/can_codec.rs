@@ -1156,14 +1156,16 @@ fn insert(stream: &[(u64, CanFrame)], t_us: u64, frame: CanFrame) -> (Vec<(u64, 
 }
 
 /// A report with a plausible time and a counter a few ahead (it claims lost reports) is
-/// accepted, but the next status frame's `FaultReportCount` does not count it: it is withdrawn
-/// (`Reception::withdrawn`), and the genuine reports after it are accepted.
+/// accepted, but the next status frame's `FaultReportCount` does not count it: from then on it
+/// is not current, and the frame after that status frame, agreeing with its count, withdraws it
+/// (`Reception::withdrawn`); the genuine reports after it are accepted.
 #[test]
 fn a_report_the_heartbeat_does_not_count_is_withdrawn() {
     let g = genuine_stream(20);
     let (s, at) = insert(&g, 1_500_000, foreign_report(&g, 150, 3));
     let mut d = Decoder::new();
     let mut withdrawn = 0;
+    let mut after_status = false;
     for (i, (t, f)) in s.iter().enumerate() {
         let r = d.receive(*t, f);
         withdrawn += r.withdrawn;
@@ -1172,11 +1174,59 @@ fn a_report_the_heartbeat_does_not_count_is_withdrawn() {
         } else {
             assert!(r.result.is_ok(), "genuine frame at {t}: {r:?}");
         }
+        if after_status {
+            assert_eq!(r.withdrawn, 1, "withdrawn by the frame after the status frame: {r:?}");
+            after_status = false;
+        }
         if *t == 2_000_000 && is_status(f) {
-            assert_eq!(r.withdrawn, 1, "withdrawn by the next status frame: {r:?}");
+            assert_eq!(r.withdrawn, 0, "one status frame's word alone withdraws nothing: {r:?}");
+            assert!(!d.is_current(1_500_000, 2_000_000), "but the report it leaves out is not current");
+            after_status = true;
         }
     }
     assert_eq!(withdrawn, 1);
+}
+
+/// Finding F7 of the third black-box tester: a corruption of one status frame's
+/// `FaultReportCount` that keeps the CRC (about 1 in 256 corrupted frames) got genuine reports
+/// withdrawn (count below them) or rejected (count ahead of them). The count is the sender's
+/// word, but one frame's word decides nothing when the chain of accepted reports contradicts
+/// it: the next report continues the chain, so the count was corrupt (`count_corrupt`); nothing
+/// is withdrawn, flagged or lost. Every count value but the true one, on a status frame with
+/// reports before and after it.
+#[test]
+fn a_crc_passing_corruption_of_the_fault_report_count_rejects_and_withdraws_nothing() {
+    use pbm::can::codec::frame_payload;
+    let g = genuine_stream(12);
+    // The status frame at 6 s: reports at 5.3 s (a change), 5.4 s ..., and after it at 6.3 s.
+    let at = g.iter().position(|(t, f)| *t == 6_000_000 && is_status(f)).expect("status at 6 s");
+    let (_, bits) = frame_payload(&g[at].1).expect("genuine");
+    let true_link = status_link(bits);
+    let Report::Status(status) =
+        pbm::can::codec::decode_signals(pbm::can::codec::MessageKind::Status, bits).expect("genuine")
+    else {
+        panic!("status")
+    };
+    for count in (0..16u8).filter(|&c| c != true_link.fault_count) {
+        let mut s = g.clone();
+        s[at].1 = encode_status(&status, StatusLink { fault_count: count, ..true_link });
+        let mut d = Decoder::new();
+        let (mut withdrawn, mut lost, mut corrupt) = (0, 0, 0);
+        for (i, (t, f)) in s.iter().enumerate() {
+            let r = d.receive(*t, f);
+            assert!(r.result.is_ok(), "count {count}: frame {i} at {t}: {r:?}");
+            assert!(!r.stale, "count {count}: frame {i} at {t}: {r:?}");
+            withdrawn += r.withdrawn;
+            lost += r.lost_fault_reports;
+            corrupt += u8::from(r.count_corrupt);
+        }
+        assert_eq!(withdrawn, 0, "count {count}");
+        assert_eq!(lost, 0, "count {count}");
+        // One ahead is the count of the report of the status frame's tick, which that frame
+        // overtook (it came after it): no contradiction, and none needed. Any other is found.
+        let one_ahead = count == (true_link.fault_count + 1) & 0xF;
+        assert_eq!(corrupt, u8::from(!one_ahead), "count {count}");
+    }
 }
 
 /// A report whose counter is behind the count the receiver last learnt, within less time than

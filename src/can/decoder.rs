@@ -208,6 +208,31 @@ struct Session {
     /// yet, and how many such reports there are: a later status frame whose count does not
     /// include them shows they were not sent by this monitor, and they are withdrawn.
     unconfirmed: Option<Unconfirmed>,
+    /// The last status frame's `FaultReportCount` contradicted the reports this receiver
+    /// accepted, and rests on that one frame's word: see [`CountClaim`].
+    count_claim: Option<CountClaim>,
+}
+
+/// A status frame's `FaultReportCount` that contradicts the chain of the accepted reports'
+/// counters: it leaves out reports accepted since the status frame before (they would be
+/// withdrawn), or it is more than one ahead (reports lost). Either the reports are not the
+/// monitor's (a CRC-passing report of another locomotive) or they were lost, or the count is
+/// a corruption the CRC missed (about 1 in 256 corrupted frames). One frame's word does not
+/// decide it: the next accepted fault report or status frame does, by whichever of the two
+/// needs fewer lost reports to explain it (the monitor's count only grows, and genuine frames
+/// are rarely lost). The count winning withdraws the reports it leaves out; the chain
+/// winning shows the status frame was corrupt ([`Reception::count_corrupt`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct CountClaim {
+    /// The count the status frame gave (the next `FaultCounter`, by its word).
+    count: u8,
+    /// The next `FaultCounter` by the accepted reports when the status frame came.
+    chain_next: u8,
+    /// The count leaves out accepted reports ([`Session::unconfirmed`]): withdrawing them is
+    /// pending, and they are not current meanwhile.
+    withdraws: bool,
+    /// Reports lost by the count's word (reported once the count is confirmed).
+    lost: u8,
 }
 
 impl Session {
@@ -215,6 +240,28 @@ impl Session {
     /// frame (`FaultReportCount`) or fault report (its counter), whichever came later.
     fn count_learnt_us(&self) -> u64 {
         self.fault.map_or(self.at_us, |f| f.at_us.max(self.at_us))
+    }
+
+    /// Could the sender have sent 16 reports or more since the last one accepted? The 4-bit
+    /// counter may then have gone round: the chain of accepted reports cannot contradict a
+    /// status frame's count that says reports were lost (a burst of 16 lost reports looks like
+    /// no loss).
+    fn chain_wrapped(&self, now: u64) -> bool {
+        self.fault.is_none_or(|f| reports_possible(f.at_us, now) >= 16)
+    }
+
+    /// The chain of the accepted reports was right and the status frame's count `claim` was
+    /// corrupt: the receiver's counters go back to the chain, and the reports the count left
+    /// out are confirmed.
+    fn revert_claim(&mut self, claim: CountClaim) {
+        if claim.withdraws {
+            self.unconfirmed = None;
+            self.status_count = self.next_fault;
+        } else {
+            self.next_fault = claim.chain_next;
+            self.status_count = claim.chain_next;
+            self.owed_fault = None;
+        }
     }
 
     /// Takes back the fault reports no status frame has counted: the fault-report state goes
@@ -281,6 +328,11 @@ pub struct Reception {
     /// an old start-up recording replayed (the release number wraps at 64), so its fault reports
     /// are stale, never current. 0 when not.
     pub restart_jump: u8,
+    /// The `FaultReportCount` of the status frame before this frame contradicted the reports
+    /// accepted before and after it (and the counts around it): it was corrupted in a way the
+    /// CRC missed, and the receiver ignored it (the reports it left out are kept, the loss it
+    /// claimed was none).
+    pub count_corrupt: bool,
 }
 
 /// Stream decoder of the monitor's frames.
@@ -340,6 +392,8 @@ impl Decoder {
                     && s.fault.is_some_and(|f| f.at_us == accepted_us)
                     // Not accepted while a heartbeat was overdue (`Reception::stale`).
                     && accepted_us.saturating_sub(s.at_us) < STATUS_PERIOD_US + TOLERANCE_US
+                    // Not left out by the last status frame's count (pending: `CountClaim`).
+                    && !s.count_claim.is_some_and(|c| c.withdraws)
             }
             None => false,
         }
@@ -367,11 +421,17 @@ impl Decoder {
             stale: false,
             withdrawn: 0,
             restart_jump: 0,
+            count_corrupt: false,
         };
-        if let Some(s) = self.session {
+        if let Some(mut s) = self.session {
             let silence = now_us.saturating_sub(s.at_us);
             if silence > HEARTBEAT_TIMEOUT_US {
                 rec.heartbeat_lost_us = Some(silence);
+                // The monitor's last count left out reports and nothing came to contradict it:
+                // its word stands.
+                if s.count_claim.take().is_some_and(|c| c.withdraws) {
+                    rec.withdrawn = s.withdraw_unconfirmed();
+                }
                 // A tentative session never confirmed is not worth remembering over the one
                 // before it.
                 if !s.tentative || self.lost.is_none() {
@@ -552,6 +612,7 @@ impl Decoder {
             release_prev: None,
             owed_fault: None,
             unconfirmed: None,
+            count_claim: None,
         });
         // A tentative session rests on one frame, which may be a replay: what it says of the
         // locomotive's newest release is believed only once a second heartbeat confirms it
@@ -594,6 +655,25 @@ impl Decoder {
         let since_report = s.fault.map_or(u64::MAX, |f| now.saturating_sub(f.at_us));
         // The report of this frame's own tick may come first without being counted by it.
         let own_tick = since_report <= MAX_LATENCY_STEP_US + TOLERANCE_US;
+        // A count of the status frame before that contradicted the reports' chain is decided
+        // by this one: whichever needs fewer lost reports to reach this count was right.
+        let mut claim_lost = 0;
+        if let Some(claim) = s.count_claim.take() {
+            let by_claim = count.wrapping_sub(claim.count) & 0xF;
+            let by_chain = count.wrapping_sub(claim.chain_next) & 0xF;
+            if by_claim < by_chain || (!claim.withdraws && s.chain_wrapped(now)) {
+                if claim.withdraws {
+                    rec.withdrawn = s.withdraw_unconfirmed();
+                    s.next_fault = claim.count;
+                }
+                s.status_count = claim.count;
+                claim_lost = claim.lost;
+            } else {
+                s.revert_claim(claim);
+                rec.count_corrupt = true;
+            }
+        }
+        let mut withdraws = false;
         if s.unconfirmed.is_some() {
             if reports_possible(s.at_us, now) >= 16 {
                 s.unconfirmed = None;
@@ -605,8 +685,9 @@ impl Decoder {
                 if last < sent {
                     s.unconfirmed = None;
                 } else if !(last == sent && own_tick) {
-                    // The monitor never sent them: withdrawn.
-                    rec.withdrawn = s.withdraw_unconfirmed();
+                    // The monitor never sent them, or this count is corrupt: withdrawn once the
+                    // next frame agrees with this count ([`CountClaim`]).
+                    withdraws = true;
                 }
             }
         }
@@ -617,16 +698,30 @@ impl Decoder {
         // this frame's tick came first (nothing lost), or a count the receiver held came from a
         // status frame corrupted in a way the CRC missed (the count only grows: this one is right).
         let learnt = s.count_learnt_us();
-        let mut lost = u8::from(s.owed_fault.take().is_some());
+        let mut lost = u8::from(s.owed_fault.take().is_some()).saturating_add(claim_lost);
         let behind = count.wrapping_sub(s.next_fault) & 0xF;
-        if behind > 0 && u64::from(behind) <= reports_possible(learnt, now) && !(behind == 15 && own_tick) {
-            lost += behind - 1;
+        let chain_next = s.next_fault;
+        if withdraws {
+            // Pending: the chain stays as the reports left it.
+            s.count_claim = Some(CountClaim { count, chain_next, withdraws: true, lost: 0 });
+        } else if behind > 0 && u64::from(behind) <= reports_possible(learnt, now) && !(behind == 15 && own_tick) {
             s.owed_fault = Some(count.wrapping_sub(1) & 0xF);
             s.next_fault = count;
+            if behind > 1 && s.last_fault_counter.is_some() {
+                // Reports lost, by this frame's word alone: reported once confirmed.
+                s.count_claim = Some(CountClaim { count, chain_next, withdraws: false, lost: behind - 1 });
+            } else {
+                lost += behind - 1;
+            }
         } else if behind > 0 && !(behind == 15 && own_tick) {
             s.next_fault = count;
+            if s.last_fault_counter.is_some() {
+                s.count_claim = Some(CountClaim { count, chain_next, withdraws: false, lost: 0 });
+            }
         }
-        s.status_count = count;
+        if !withdraws {
+            s.status_count = count;
+        }
         rec.lost_fault_reports = lost;
         // The session clock: when a frame with this counter was due.
         let span = d.saturating_mul(STATUS_PERIOD_US);
@@ -681,6 +776,17 @@ impl Decoder {
     }
 
     fn fault(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
+        let withdrawn_before = rec.withdrawn;
+        let result = self.judge_fault(now, bits, rec);
+        if result.is_err() {
+            // A flagged frame moves nothing: what judging it would have withdrawn stays.
+            rec.withdrawn = withdrawn_before;
+            rec.count_corrupt = false;
+        }
+        result
+    }
+
+    fn judge_fault(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
         // After a silence the report is judged against the session lost to it (the sender may
         // well be alive: a fresh report of its release shows it), but it is not current: no
         // live heartbeat vouches for it ([`Reception::stale`]). It does not reopen the session,
@@ -720,6 +826,27 @@ impl Decoder {
             }
         }
         let counter = l::FAULT_COUNTER.get(bits) as u8;
+        // A status frame's count that contradicted the chain of accepted reports is decided by
+        // this report (kept only if it is accepted): whichever of the two it continues with
+        // fewer reports lost was right ([`CountClaim`]). The report the status frame overtook
+        // (one before its count) continues the count.
+        let mut claim_lost = 0;
+        if let Some(claim) = s.count_claim.take() {
+            let overtaken = !claim.withdraws && counter == claim.count.wrapping_sub(1) & 0xF;
+            let by_claim = if overtaken { 0 } else { counter.wrapping_sub(claim.count) & 0xF };
+            let by_chain = counter.wrapping_sub(claim.chain_next) & 0xF;
+            if by_claim < by_chain || (!claim.withdraws && s.chain_wrapped(now)) {
+                if claim.withdraws {
+                    rec.withdrawn = s.withdraw_unconfirmed();
+                    s.next_fault = claim.count;
+                    s.status_count = claim.count;
+                }
+                claim_lost = claim.lost;
+            } else {
+                s.revert_claim(claim);
+                rec.count_corrupt = true;
+            }
+        }
         let key = bits & !(l::FAULT_CRC.mask() | l::FAULT_COUNTER.mask() | l::TIME_SINCE_RELEASE.mask());
         let slack = (TOLERANCE_US + TAU_ROUNDING_US) as i64;
         let start = diff(now, tau_us);
@@ -754,7 +881,7 @@ impl Decoder {
                     && self.first_of_release(&s, identity, start, slack) == Ok(false);
                 if replaces {
                     replaced = true;
-                    rec.withdrawn = s.withdraw_unconfirmed();
+                    rec.withdrawn = rec.withdrawn.saturating_add(s.withdraw_unconfirmed());
                     if rec.withdrawn == 0 {
                         // The report it replaces had been counted by a status frame already.
                         rec.withdrawn = 1;
@@ -877,7 +1004,7 @@ impl Decoder {
             // (A report the status frame overtook is the owed one: d = 15.)
             lost += d;
         }
-        rec.lost_fault_reports = lost;
+        rec.lost_fault_reports = lost.saturating_add(claim_lost);
         s.next_fault = (counter + 1) & 0xF;
         s.last_fault_counter = Some(counter);
         // Heartbeats overdue at this moment were lost (a deleted status frame is noticed even
