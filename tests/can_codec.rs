@@ -1453,3 +1453,31 @@ fn a_restart_with_a_release_jump_is_not_current() {
         }
     }
 }
+
+/// Findings F1a/F1b of the third black-box tester: the second heartbeat of a session delayed
+/// 100–900 ms by a gateway was accepted (a session opened on one frame was replaced by it),
+/// and then the genuine heartbeat after it was flagged (`rate_exceeded`) or the first genuine
+/// report shown stale. A heartbeat late by less than a period is flagged and only replaces the
+/// opener when the next one comes at its phase too; here the next one fits the opener.
+#[test]
+fn a_delayed_second_heartbeat_is_flagged_and_the_genuine_frames_after_it_are_current() {
+    let g = genuine_stream(20);
+    let second = g.iter().enumerate().filter(|(_, (_, f))| is_status(f)).nth(1).map(|(i, _)| i).unwrap();
+    for delay_ms in [60u64, 100, 200, 450, 600, 700, 900] {
+        let mut s = g.clone();
+        let (t, f) = s.remove(second);
+        let late = t + delay_ms * 1000;
+        let at = s.iter().position(|(u, _)| *u > late).unwrap_or(s.len());
+        s.insert(at, (late, f));
+        let mut d = Decoder::new();
+        for (i, (t, f)) in s.iter().enumerate() {
+            let r = d.receive(*t, f);
+            if i == at {
+                assert_eq!(r.result.err().map(|e| e.label()), Some("untimely"), "{delay_ms} ms: the delayed one");
+            } else {
+                assert!(r.result.is_ok(), "{delay_ms} ms: genuine frame at {t}: {r:?}");
+                assert!(!r.stale && !r.superseded, "{delay_ms} ms: genuine frame at {t}: {r:?}");
+            }
+        }
+    }
+}

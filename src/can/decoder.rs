@@ -474,11 +474,17 @@ impl Decoder {
                     // not fit its clock replaces it.
                     // (Its counter may look older too: the one frame may have been a corruption
                     // of the counter that kept the CRC.)
-                    Err(FrameError::Untimely { .. } | FrameError::Stale { .. })
+                    // A newer heartbeat late by less than a period is what a delayed second
+                    // heartbeat looks like (the opener was on time): flagged, its phase kept;
+                    // only the next heartbeat at the same phase shows the opener was the odd
+                    // one and replaces it (else the delayed frame was accepted and got the
+                    // genuine one after it flagged, or the first report shown stale).
+                    Err(e @ (FrameError::Untimely { .. } | FrameError::Stale { .. }))
                         if s.tentative
                             && release_not_before(link.identity.release & 0x3F, s.identity.release)
                             && link.counter != s.counter
-                            && diff(now, s.at_us) >= (STATUS_PERIOD_US - TOLERANCE_US) as i64 =>
+                            && diff(now, s.at_us) >= (STATUS_PERIOD_US - TOLERANCE_US) as i64
+                            && !(late_within_period(e) && !same_phase(&s, now, &link)) =>
                     {
                         rec.superseded = true;
                         self.open(now, &link, true, rec);
@@ -1096,6 +1102,12 @@ struct Continues {
     phase: Phase,
     /// It goes back to the release before a rise that rested on one heartbeat.
     undo_release: bool,
+}
+
+/// A heartbeat flagged late by less than a period (less the tolerance): delayed, not a counter
+/// that disagrees with the clock by whole periods.
+fn late_within_period(e: FrameError) -> bool {
+    matches!(e, FrameError::Untimely { off_ms } if off_ms > 0 && i64::from(off_ms) < ((STATUS_PERIOD_US - TOLERANCE_US) / 1000) as i64)
 }
 
 /// Was the last off-phase heartbeat of `s` at the phase of this one (`d` periods apart, within

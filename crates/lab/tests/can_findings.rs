@@ -1,0 +1,71 @@
+//! The third black-box tester's reproducers (candump logs in `tests/data/can_findings/`, as
+//! the tester left them; can/README.md lists the findings): each is decoded frame by frame and
+//! only the lines the tester disturbed may be flagged, and no genuine report may be shown stale
+//! or withdrawn.
+
+use pbm::can::{Decoder, Report};
+use pbm_io::can_log::read_log;
+
+/// What became of each line (1-based line numbers).
+#[derive(Debug, Default)]
+struct Outcome {
+    flagged: Vec<usize>,
+    stale: Vec<usize>,
+    withdrawn: Vec<usize>,
+    corrupt_counts: usize,
+}
+
+fn decode(name: &str) -> Outcome {
+    let path = format!("{}/tests/data/can_findings/{name}", env!("CARGO_MANIFEST_DIR"));
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mut d = Decoder::new();
+    let mut o = Outcome::default();
+    let mut accepted = Vec::new();
+    for (i, rec) in read_log(&bytes[..]).enumerate() {
+        let rec = rec.unwrap_or_else(|e| panic!("{name}: {e:?}"));
+        let line = i + 1;
+        let r = d.receive(rec.time_us, &rec.frame);
+        for _ in 0..r.withdrawn {
+            if let Some(l) = accepted.pop() {
+                o.withdrawn.push(l);
+            }
+        }
+        o.corrupt_counts += usize::from(r.count_corrupt);
+        match r.result {
+            Err(_) => o.flagged.push(line),
+            Ok(Report::Fault(_)) => {
+                accepted.push(line);
+                if r.stale {
+                    o.stale.push(line);
+                }
+            }
+            Ok(Report::Status(_)) => {}
+        }
+    }
+    o
+}
+
+/// F7: a CRC-keeping corruption of one heartbeat's `FaultReportCount` (line 21, 14 → 6) made
+/// the receiver claim 8 lost reports or withdraw the genuine report before it; now the reports
+/// around it show the count corrupt, and nothing is flagged, lost or withdrawn.
+#[test]
+fn f7_a_corrupted_fault_report_count_withdraws_nothing() {
+    let o = decode("F7_crc_passing_corruption_of_FaultReportCount_withdraws_genuine_report.log");
+    assert!(o.flagged.is_empty() && o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+    assert_eq!(o.corrupt_counts, 1, "{o:?}");
+}
+
+/// F1a / F1b: the session's second heartbeat (line 2) delayed 700 ms / 200 ms was accepted, and
+/// the next genuine heartbeat flagged or the first genuine report shown stale; now the delayed
+/// one alone is flagged.
+#[test]
+fn f1_a_delayed_second_heartbeat_alone_is_flagged() {
+    for name in [
+        "F1a_delayed_2nd_heartbeat_accepted_genuine_rejected.log",
+        "F1b_delayed_2nd_heartbeat_makes_first_report_stale.log",
+    ] {
+        let o = decode(name);
+        assert_eq!(o.flagged, vec![2], "{name}: {o:?}");
+        assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{name}: {o:?}");
+    }
+}
