@@ -108,6 +108,10 @@ const TAU_SATURATED: u16 = 4095;
 /// How much earlier than its release start predicts a fault report may come (the start was
 /// estimated from a delayed report).
 const FAULT_EARLY_US: u64 = 500_000;
+/// The shortest time between two release commands the receiver assumes when a silence may have
+/// hidden half the release number's range or more (a release command, the valve opening and
+/// its report take longer than this).
+const MIN_RELEASE_US: u64 = STATUS_PERIOD_US;
 /// Heartbeat counter modulus (12 bits).
 const COUNTER_MOD: u16 = 4096;
 /// How far the receiver follows a lasting rise of the bus latency (a latency step, a gateway
@@ -766,7 +770,7 @@ impl Decoder {
         s.tentative = false;
         self.session = Some(s);
         self.remember(link);
-        if c.undo_release {
+        if c.undo_release || c.release_wrapped {
             self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
         }
         rec.identity = Some(s.identity);
@@ -1102,6 +1106,9 @@ struct Continues {
     phase: Phase,
     /// It goes back to the release before a rise that rested on one heartbeat.
     undo_release: bool,
+    /// Its release number looks older (modulo 64) but a silence long enough lay before it: the
+    /// sender went on by more than half the release number's range.
+    release_wrapped: bool,
 }
 
 /// A heartbeat flagged late by less than a period (less the tolerance): delayed, not a counter
@@ -1168,14 +1175,24 @@ fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<Continues, F
     };
     let release = link.identity.release & 0x3F;
     let mut undo_release = false;
+    let mut release_wrapped = false;
     if !release_not_before(release, s.identity.release) {
         // Back to the release before a rise that rests on one heartbeat, or on from it: that
         // heartbeat was a corruption the CRC missed, or a replay (of a release 4096 s old).
         if s.release_prev.is_some_and(|(r, ..)| release_not_before(release, r)) {
             undo_release = true;
+        } else if gap > HEARTBEAT_TIMEOUT_US as i64
+            && gap >= i64::from(release.wrapping_sub(s.identity.release) & 0x3F) * MIN_RELEASE_US as i64
+        {
+            // After a silence, the same sender running on (its counter advanced as the time
+            // did: it never powered down) only counts releases up; a number 32–63 "behind" is
+            // 32–63 releases on, which the 6-bit number cannot tell, when the silence was
+            // long enough for that many (else a receiver cut off while they happened refused
+            // the live monitor for good).
+            release_wrapped = true;
         } else {
             return Err(FrameError::WrongRelease { expected: s.identity.release, got: link.identity.release });
         }
     }
-    Ok(Continues { periods: d, phase, undo_release })
+    Ok(Continues { periods: d, phase, undo_release, release_wrapped })
 }

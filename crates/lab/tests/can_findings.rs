@@ -69,3 +69,16 @@ fn f1_a_delayed_second_heartbeat_alone_is_flagged() {
         assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{name}: {o:?}");
     }
 }
+
+/// F10: a receiver cut off for 1265 s while the monitor went from release 8 to 40 (32 on: the
+/// 6-bit number looks 32 behind) refused every later frame as `wrong_release`. The heartbeat
+/// continues the session in time (the sender never powered down), so it only counted releases
+/// up: accepted. Only the report before the first heartbeat (line 1) and the reports between
+/// the silence and the first heartbeat after it, which no live heartbeat attributes, may be
+/// flagged.
+#[test]
+fn f10_a_receiver_outage_over_32_releases_resynchronises() {
+    let o = decode("F10_receiver_outage_release_advanced_32_locks_out.log");
+    assert!(o.flagged.iter().all(|&l| l == 1), "{o:?}");
+    assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+}
