@@ -215,6 +215,11 @@ struct Session {
     /// The last status frame's `FaultReportCount` contradicted the reports this receiver
     /// accepted, and rests on that one frame's word: see [`CountClaim`].
     count_claim: Option<CountClaim>,
+    /// The release and release start of the last first report of a release flagged as late
+    /// for the release's first heartbeat: a latency step that began at that report shows the
+    /// same start in the next one, which is then accepted (else every report of the release's
+    /// first second was flagged, up to 11).
+    first_late: Option<(u8, i64)>,
 }
 
 /// A status frame's `FaultReportCount` that contradicts the chain of the accepted reports'
@@ -394,8 +399,10 @@ impl Decoder {
             Some(s) => {
                 now_us.saturating_sub(s.at_us) <= HEARTBEAT_TIMEOUT_US
                     && s.fault.is_some_and(|f| f.at_us == accepted_us)
-                    // Not accepted while a heartbeat was overdue (`Reception::stale`).
-                    && accepted_us.saturating_sub(s.at_us) < STATUS_PERIOD_US + TOLERANCE_US
+                    // Not accepted while a heartbeat was overdue (`Reception::stale`; a heartbeat
+                    // received late within the latency step followed is not overdue).
+                    && accepted_us.saturating_sub(s.at_us)
+                        < STATUS_PERIOD_US + TOLERANCE_US + late_heartbeat(&s).map_or(0, |l| STATUS_PERIOD_US + l)
                     // Not left out by the last status frame's count (pending: `CountClaim`).
                     && !s.count_claim.is_some_and(|c| c.withdraws)
             }
@@ -623,6 +630,7 @@ impl Decoder {
             owed_fault: None,
             unconfirmed: None,
             count_claim: None,
+            first_late: None,
         });
         // A tentative session rests on one frame, which may be a replay: what it says of the
         // locomotive's newest release is believed only once a second heartbeat confirms it
@@ -636,7 +644,11 @@ impl Decoder {
     /// Accepts a status frame that continues session `s` (`c`: how, from [`continuation`]).
     fn accept_status(&mut self, mut s: Session, now: u64, link: &StatusLink, c: Continues, rec: &mut Reception) {
         let d = c.periods;
-        rec.lost_status = u16::try_from(d.saturating_sub(1)).unwrap_or(u16::MAX).saturating_sub(s.overdue_reported);
+        // (The heartbeat before this one at its phase was received, flagged: not lost.)
+        let received_late = u64::from(late_heartbeat(&s).is_some() && c.phase == Phase::Step);
+        rec.lost_status = u16::try_from(d.saturating_sub(1).saturating_sub(received_late))
+            .unwrap_or(u16::MAX)
+            .saturating_sub(s.overdue_reported);
         s.overdue_reported = 0;
         let release = link.identity.release & 0x3F;
         if c.undo_release {
@@ -964,12 +976,12 @@ impl Decoder {
                         late_start_us: None,
                     }
                 } else {
-                    let unverified = self.first_of_release(&s, identity, start, slack)?;
+                    let unverified = self.first_report(&s, identity, start, slack, in_lost)?;
                     FaultTrack::first(now, identity.release, tau, start, key, counter, unverified)
                 }
             }
             None => {
-                let unverified = self.first_of_release(&s, identity, start, slack)?;
+                let unverified = self.first_report(&s, identity, start, slack, in_lost)?;
                 FaultTrack::first(now, identity.release, tau, start, key, counter, unverified)
             }
         };
@@ -1021,13 +1033,24 @@ impl Decoder {
         // when no status frame follows before the sender stops).
         let overdue = (now.saturating_sub(s.at_us).saturating_sub(TOLERANCE_US) / STATUS_PERIOD_US)
             .min(u64::from(u16::MAX)) as u16;
-        if overdue > s.overdue_reported {
-            rec.lost_status = overdue - s.overdue_reported;
-            s.overdue_reported = overdue;
+        // A heartbeat that came late and was flagged (the first of a latency step, or delayed)
+        // was not lost, and its lateness, up to the latency step the receiver follows, delays
+        // when the next one is missed (else a latency step claimed a lost status frame, and the
+        // reports of the second after it were shown stale though the sender was heard).
+        let missed = match late_heartbeat(&s) {
+            Some(late_us) => {
+                let m = now.saturating_sub(s.at_us).saturating_sub(TOLERANCE_US + late_us) / STATUS_PERIOD_US;
+                (m.min(u64::from(u16::MAX)) as u16).saturating_sub(1)
+            }
+            None => overdue,
+        };
+        if missed > s.overdue_reported {
+            rec.lost_status = missed - s.overdue_reported;
+            s.overdue_reported = missed;
         }
         // No heartbeat on time vouches for it: accepted (it may be genuine: a status frame was
         // lost), but not current (a delayed stream, whose heartbeats are flagged, shows here).
-        rec.stale = overdue > 0 || track.unverified || s.restart_jump > 0;
+        rec.stale = missed > 0 || track.unverified || s.restart_jump > 0;
         rec.restart_jump = s.restart_jump;
         if undo_release {
             self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
@@ -1054,6 +1077,30 @@ impl Decoder {
         }
     }
 
+    /// [`Decoder::first_of_release`] for a report about to be accepted as the first of its
+    /// release: a report flagged as late for the release's first heartbeat leaves its release
+    /// start as evidence of a latency step ([`Session::first_late`]), which the next report
+    /// confirms by agreeing with it.
+    fn first_report(
+        &mut self,
+        s: &Session,
+        identity: Identity,
+        start: i64,
+        slack: i64,
+        in_lost: bool,
+    ) -> Result<bool, FrameError> {
+        let r = self.first_of_release(s, identity, start, slack);
+        if let Err(FrameError::Untimely { off_ms }) = r {
+            if off_ms < 0 {
+                let held = if in_lost { self.lost.as_mut() } else { self.session.as_mut() };
+                if let Some(h) = held {
+                    h.first_late = Some((identity.release, start));
+                }
+            }
+        }
+        r
+    }
+
     /// The first report of a release must place its release command in the window the
     /// heartbeats allow. `Ok(true)`: the window has no lower bound (no heartbeat of the
     /// previous release seen) and the start lies before the monitor's power-up as the session's
@@ -1074,9 +1121,14 @@ impl Decoder {
         }
         if let Some(lt) = latest {
             // (A latency step the session clock followed since lets the reports come later
-            // than the release's first heartbeat did, by up to that step.)
+            // than the release's first heartbeat did, by up to that step; so does a step the
+            // report flagged before this one showed, at the same release start: a latency
+            // step that began at the release's first report.)
             let off = start.saturating_sub(diff(lt, 0));
-            if off > slack.saturating_add(s.lag_us) {
+            let step_shown =
+                s.first_late.is_some_and(|(r, ls)| r == identity.release && start.saturating_sub(ls).abs() <= slack)
+                    && off <= slack.saturating_add(MAX_LATENCY_STEP_US as i64);
+            if off > slack.saturating_add(s.lag_us) && !step_shown {
                 return Err(FrameError::Untimely { off_ms: -ms(off) });
             }
         }
@@ -1109,6 +1161,19 @@ struct Continues {
     /// Its release number looks older (modulo 64) but a silence long enough lay before it: the
     /// sender went on by more than half the release number's range.
     release_wrapped: bool,
+}
+
+/// A newer heartbeat of session `s` flagged as late ([`Session::off_phase`]) by no more than
+/// the latency step the receiver follows: how late it was, µs.
+fn late_heartbeat(s: &Session) -> Option<u64> {
+    let (c, at) = s.off_phase?;
+    let dp = c.wrapping_sub(s.counter) % COUNTER_MOD;
+    if !(1..COUNTER_MOD / 2).contains(&dp) {
+        return None;
+    }
+    let due = s.anchor_us.saturating_add(i64::from(dp) * STATUS_PERIOD_US as i64);
+    let late = diff(at, 0).saturating_sub(due);
+    (late > 0 && late.saturating_add(s.lag_us) <= MAX_LATENCY_STEP_US as i64).then_some(late.unsigned_abs())
 }
 
 /// A heartbeat flagged late by less than a period (less the tolerance): delayed, not a counter

@@ -82,3 +82,15 @@ fn f10_a_receiver_outage_over_32_releases_resynchronises() {
     assert!(o.flagged.iter().all(|&l| l == 1), "{o:?}");
     assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
 }
+
+/// F5: a latency step of 123 ms beginning at release 5's first report (line 28; every line
+/// genuine) got the heartbeat at the step and the first 11 reports of the release flagged, and
+/// a status frame claimed lost. Now the step is followed from the second frame of each message
+/// on: the heartbeat and the report at the step (lines 28, 29: a delayed frame looks the same)
+/// are flagged, nothing else; no status frame is claimed lost and no report shown stale.
+#[test]
+fn f5_a_latency_step_at_a_releases_first_report_flags_one_frame_of_each_message() {
+    let o = decode("F5_latency_step_at_release_start_flags_11_reports.log");
+    assert_eq!(o.flagged, vec![28, 29], "{o:?}");
+    assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+}
