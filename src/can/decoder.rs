@@ -1239,21 +1239,29 @@ fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<Continues, F
         Phase::OnTime
     };
     let release = link.identity.release & 0x3F;
+    // The same sender running on (its counter continues: it never powered down) only counts
+    // its release number up, by release commands, at most one per MIN_RELEASE_US (and the one
+    // of this period): `on` releases since the last heartbeat. More than the time allows is
+    // no genuine frame: a lag-4096 replay of another release ahead of its genuine twin (which
+    // was accepted, got the twin flagged, and its count the genuine reports withdrawn), or a
+    // corruption the CRC missed.
+    let on = release.wrapping_sub(s.identity.release) & 0x3F;
+    let possible = 1 + gap.max(0).unsigned_abs() / MIN_RELEASE_US;
     let mut undo_release = false;
     let mut release_wrapped = false;
-    if !release_not_before(release, s.identity.release) {
-        // Back to the release before a rise that rests on one heartbeat, or on from it: that
-        // heartbeat was a corruption the CRC missed, or a replay (of a release 4096 s old).
-        if s.release_prev.is_some_and(|(r, ..)| release_not_before(release, r)) {
-            undo_release = true;
-        } else if gap > HEARTBEAT_TIMEOUT_US as i64
-            && gap >= i64::from(release.wrapping_sub(s.identity.release) & 0x3F) * MIN_RELEASE_US as i64
-        {
-            // After a silence, the same sender running on (its counter advanced as the time
-            // did: it never powered down) only counts releases up; a number 32–63 "behind" is
-            // 32–63 releases on, which the 6-bit number cannot tell, when the silence was
-            // long enough for that many (else a receiver cut off while they happened refused
-            // the live monitor for good).
+    // Back to the release before a rise that rests on one heartbeat, or on from it: that
+    // heartbeat was a corruption the CRC missed, or a replay (of a release 4096 s old).
+    if !release_not_before(release, s.identity.release)
+        && s.release_prev.is_some_and(|(r, ..)| release_not_before(release, r))
+    {
+        undo_release = true;
+    } else if u64::from(on) > possible {
+        return Err(FrameError::WrongRelease { expected: s.identity.release, got: link.identity.release });
+    } else if !release_not_before(release, s.identity.release) {
+        // 32–63 on looks 32–63 behind modulo 64: after a silence (a receiver cut off while the
+        // releases happened: else it refused the live monitor for good) it is taken as on;
+        // within a session that is no genuine frame.
+        if gap > HEARTBEAT_TIMEOUT_US as i64 {
             release_wrapped = true;
         } else {
             return Err(FrameError::WrongRelease { expected: s.identity.release, got: link.identity.release });

@@ -94,3 +94,14 @@ fn f5_a_latency_step_at_a_releases_first_report_flags_one_frame_of_each_message(
     assert_eq!(o.flagged, vec![28, 29], "{o:?}");
     assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
 }
+
+/// F2: a status frame replayed 4096 s later (line 15, release 4 while the monitor is at 40),
+/// 0.3 s before its genuine twin, was accepted and the twin flagged (and, before that, the
+/// genuine frames locked out). A sender running on counts at most one release a second: the
+/// replay alone is flagged.
+#[test]
+fn f2_a_lag_4096_replay_of_another_release_alone_is_flagged() {
+    let o = decode("F2_lag4096_status_replay_other_release_locks_out.log");
+    assert_eq!(o.flagged, vec![15], "{o:?}");
+    assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+}
