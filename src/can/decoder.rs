@@ -227,10 +227,14 @@ struct Session {
 /// withdrawn), or it is more than one ahead (reports lost). Either the reports are not the
 /// monitor's (a CRC-passing report of another locomotive) or they were lost, or the count is
 /// a corruption the CRC missed (about 1 in 256 corrupted frames). One frame's word does not
-/// decide it: the next accepted fault report or status frame does, by whichever of the two
-/// needs fewer lost reports to explain it (the monitor's count only grows, and genuine frames
-/// are rarely lost). The count winning withdraws the reports it leaves out; the chain
-/// winning shows the status frame was corrupt ([`Reception::count_corrupt`]).
+/// decide it. A fault report that continues the count with fewer reports lost than the chain
+/// decides for the count at once; one that continues the chain is accepted on the chain's
+/// word, provisionally (not current), and the next status frame decides — the monitor's own
+/// word, which a second sender's reports at a colliding identity cannot give — by whichever of
+/// the two needs fewer lost reports to reach its count (the monitor's count only grows, and
+/// genuine frames are rarely lost). The count winning withdraws the reports it leaves out and
+/// the provisional ones; the chain winning shows the status frame was corrupt
+/// ([`Reception::count_corrupt`]) and confirms them.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct CountClaim {
     /// The count the status frame gave (the next `FaultCounter`, by its word).
@@ -242,6 +246,15 @@ struct CountClaim {
     withdraws: bool,
     /// Reports lost by the count's word (reported once the count is confirmed).
     lost: u8,
+    /// Reports were accepted since on the chain's word ([`Session::unconfirmed`]).
+    provisional: bool,
+}
+
+impl CountClaim {
+    /// Reports accepted that the claim, should it win, withdraws: not current meanwhile.
+    const fn pending_reports(&self) -> bool {
+        self.withdraws || self.provisional
+    }
 }
 
 impl Session {
@@ -261,16 +274,21 @@ impl Session {
 
     /// The chain of the accepted reports was right and the status frame's count `claim` was
     /// corrupt: the receiver's counters go back to the chain, and the reports the count left
-    /// out are confirmed.
+    /// out, and those accepted since on the chain's word, are confirmed.
     fn revert_claim(&mut self, claim: CountClaim) {
-        if claim.withdraws {
-            self.unconfirmed = None;
-            self.status_count = self.next_fault;
-        } else {
-            self.next_fault = claim.chain_next;
-            self.status_count = claim.chain_next;
-            self.owed_fault = None;
-        }
+        self.unconfirmed = None;
+        self.next_fault = claim.chain_next;
+        self.status_count = claim.chain_next;
+        self.owed_fault = None;
+    }
+
+    /// The status frame's count `claim` was right: the reports it left out, and those accepted
+    /// since on the chain's word, are withdrawn (how many), and the counters follow the count.
+    fn accept_claim(&mut self, claim: CountClaim) -> u8 {
+        let withdrawn = if claim.pending_reports() { self.withdraw_unconfirmed() } else { 0 };
+        self.next_fault = claim.count;
+        self.status_count = claim.count;
+        withdrawn
     }
 
     /// Takes back the fault reports no status frame has counted: the fault-report state goes
@@ -404,7 +422,7 @@ impl Decoder {
                     && accepted_us.saturating_sub(s.at_us)
                         < STATUS_PERIOD_US + TOLERANCE_US + late_heartbeat(&s).map_or(0, |l| STATUS_PERIOD_US + l)
                     // Not left out by the last status frame's count (pending: `CountClaim`).
-                    && !s.count_claim.is_some_and(|c| c.withdraws)
+                    && !s.count_claim.is_some_and(|c| c.pending_reports())
             }
             None => false,
         }
@@ -440,7 +458,7 @@ impl Decoder {
                 rec.heartbeat_lost_us = Some(silence);
                 // The monitor's last count left out reports and nothing came to contradict it:
                 // its word stands.
-                if s.count_claim.take().is_some_and(|c| c.withdraws) {
+                if s.count_claim.take().is_some_and(|c| c.pending_reports()) {
                     rec.withdrawn = s.withdraw_unconfirmed();
                 }
                 // A tentative session never confirmed is not worth remembering over the one
@@ -684,11 +702,7 @@ impl Decoder {
             let by_claim = count.wrapping_sub(claim.count) & 0xF;
             let by_chain = count.wrapping_sub(claim.chain_next) & 0xF;
             if by_claim < by_chain || (!claim.withdraws && s.chain_wrapped(now)) {
-                if claim.withdraws {
-                    rec.withdrawn = s.withdraw_unconfirmed();
-                    s.next_fault = claim.count;
-                }
-                s.status_count = claim.count;
+                rec.withdrawn = s.accept_claim(claim);
                 claim_lost = claim.lost;
             } else {
                 s.revert_claim(claim);
@@ -725,20 +739,21 @@ impl Decoder {
         let chain_next = s.next_fault;
         if withdraws {
             // Pending: the chain stays as the reports left it.
-            s.count_claim = Some(CountClaim { count, chain_next, withdraws: true, lost: 0 });
+            s.count_claim = Some(CountClaim { count, chain_next, withdraws: true, lost: 0, provisional: false });
         } else if behind > 0 && u64::from(behind) <= reports_possible(learnt, now) && !(behind == 15 && own_tick) {
             s.owed_fault = Some(count.wrapping_sub(1) & 0xF);
             s.next_fault = count;
             if behind > 1 && s.last_fault_counter.is_some() {
                 // Reports lost, by this frame's word alone: reported once confirmed.
-                s.count_claim = Some(CountClaim { count, chain_next, withdraws: false, lost: behind - 1 });
+                s.count_claim =
+                    Some(CountClaim { count, chain_next, withdraws: false, lost: behind - 1, provisional: false });
             } else {
                 lost += behind - 1;
             }
         } else if behind > 0 && !(behind == 15 && own_tick) {
             s.next_fault = count;
             if s.last_fault_counter.is_some() {
-                s.count_claim = Some(CountClaim { count, chain_next, withdraws: false, lost: 0 });
+                s.count_claim = Some(CountClaim { count, chain_next, withdraws: false, lost: 0, provisional: false });
             }
         }
         if !withdraws {
@@ -853,20 +868,22 @@ impl Decoder {
         // fewer reports lost was right ([`CountClaim`]). The report the status frame overtook
         // (one before its count) continues the count.
         let mut claim_lost = 0;
-        if let Some(claim) = s.count_claim.take() {
+        let mut provisional = false;
+        if let Some(mut claim) = s.count_claim.take() {
             let overtaken = !claim.withdraws && counter == claim.count.wrapping_sub(1) & 0xF;
             let by_claim = if overtaken { 0 } else { counter.wrapping_sub(claim.count) & 0xF };
             let by_chain = counter.wrapping_sub(claim.chain_next) & 0xF;
             if by_claim < by_chain || (!claim.withdraws && s.chain_wrapped(now)) {
-                if claim.withdraws {
-                    rec.withdrawn = s.withdraw_unconfirmed();
-                    s.next_fault = claim.count;
-                    s.status_count = claim.count;
-                }
+                rec.withdrawn = s.accept_claim(claim);
                 claim_lost = claim.lost;
             } else {
-                s.revert_claim(claim);
-                rec.count_corrupt = true;
+                // Judged against the chain; the next status frame decides.
+                s.next_fault = claim.chain_next;
+                s.owed_fault = None;
+                claim.provisional = true;
+                claim.chain_next = (counter + 1) & 0xF;
+                s.count_claim = Some(claim);
+                provisional = true;
             }
         }
         let key = bits & !(l::FAULT_CRC.mask() | l::FAULT_COUNTER.mask() | l::TIME_SINCE_RELEASE.mask());
@@ -1050,7 +1067,7 @@ impl Decoder {
         }
         // No heartbeat on time vouches for it: accepted (it may be genuine: a status frame was
         // lost), but not current (a delayed stream, whose heartbeats are flagged, shows here).
-        rec.stale = missed > 0 || track.unverified || s.restart_jump > 0;
+        rec.stale = missed > 0 || track.unverified || s.restart_jump > 0 || provisional;
         rec.restart_jump = s.restart_jump;
         if undo_release {
             self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
