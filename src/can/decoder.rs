@@ -22,9 +22,11 @@
 //! - have come `d` seconds after the session clock, within [`TOLERANCE_US`] plus 200 ppm
 //!   clock drift late or half a second early, else [`FrameError::Untimely`] (delayed, or a
 //!   replay at the wrong moment);
-//! - not go back in release number, else [`FrameError::WrongRelease`] (unless it goes back to
-//!   the release before a rise that rests on one heartbeat: that rise was a corruption the CRC
-//!   missed, and is undone).
+//! - not go back in release number, nor rise further than one release a second allows (the
+//!   sender running on counts release commands only), else [`FrameError::WrongRelease`]
+//!   (unless it goes back to the release before a rise that rests on one heartbeat: that rise
+//!   was a corruption the CRC missed, and is undone; after a silence long enough, a number
+//!   32–63 "behind" is that many releases on).
 //!
 //! The session clock (when the next heartbeat is due) is the earliest receive time the
 //! accepted heartbeats imply; one early heartbeat does not move it, the next one early the
@@ -76,11 +78,14 @@
 //!   vouch for that contradicts it replaces it ([`Reception::withdrawn`]).
 //!
 //! A status frame whose `FaultReportCount` leaves out reports this receiver accepted (longer
-//! after them than any latency difference allowed, so not the report of its own tick) shows
-//! the monitor never sent them: they are withdrawn ([`Reception::withdrawn`]) and the receiver
-//! goes back to what it held before them. That is what catches a fault report of another
-//! locomotive whose CRC happens to pass (one of the CRC's 15 identity collisions, or a
-//! corruption that kept the CRC) when its time since release fits.
+//! after them than any latency difference allowed, so not the report of its own tick) says
+//! the monitor never sent them — or its count is a corruption the CRC missed. One frame's word
+//! decides nothing (`CountClaim`): the reports are not current from then on, and the next
+//! report that continues the count, or the next status frame, decides; the count winning
+//! withdraws them ([`Reception::withdrawn`]) and the receiver goes back to what it held before
+//! them, the chain winning shows the count corrupt ([`Reception::count_corrupt`]). That is what
+//! catches a fault report of another locomotive whose CRC happens to pass (one of the CRC's 15
+//! identity collisions, or a corruption that kept the CRC) when its time since release fits.
 //!
 //! Before any heartbeat a fault report cannot be attributed: [`FrameError::NoHeartbeat`]. One
 //! that comes while a heartbeat is overdue, or after the heartbeat timed out (judged against
@@ -513,7 +518,7 @@ impl Decoder {
                             && release_not_before(link.identity.release & 0x3F, s.identity.release)
                             && link.counter != s.counter
                             && diff(now, s.at_us) >= (STATUS_PERIOD_US - TOLERANCE_US) as i64
-                            && !(late_within_period(e) && !same_phase(&s, now, &link)) =>
+                            && (!late_within_period(e) || same_phase(&s, now, &link)) =>
                     {
                         rec.superseded = true;
                         self.open(now, &link, true, rec);
