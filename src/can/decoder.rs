@@ -251,14 +251,14 @@ struct CountClaim {
     withdraws: bool,
     /// Reports lost by the count's word (reported once the count is confirmed).
     lost: u8,
-    /// Reports were accepted since on the chain's word ([`Session::unconfirmed`]).
-    provisional: bool,
+    /// Reports accepted since on the chain's word ([`Session::unconfirmed`]).
+    provisional: u8,
 }
 
 impl CountClaim {
     /// Reports accepted that the claim, should it win, withdraws: not current meanwhile.
     const fn pending_reports(&self) -> bool {
-        self.withdraws || self.provisional
+        self.withdraws || self.provisional > 0
     }
 }
 
@@ -289,8 +289,18 @@ impl Session {
 
     /// The status frame's count `claim` was right: the reports it left out, and those accepted
     /// since on the chain's word, are withdrawn (how many), and the counters follow the count.
+    /// A count ahead of the chain (reports lost by its word) contradicts no report accepted on
+    /// the chain's word since: those are the reports it counted, arriving late (a jitter that
+    /// reorders frames), and are confirmed, not lost.
     fn accept_claim(&mut self, claim: CountClaim) -> u8 {
-        let withdrawn = if claim.pending_reports() { self.withdraw_unconfirmed() } else { 0 };
+        let withdrawn = if claim.withdraws {
+            self.withdraw_unconfirmed()
+        } else {
+            if claim.provisional > 0 {
+                self.unconfirmed = None;
+            }
+            0
+        };
         self.next_fault = claim.count;
         self.status_count = claim.count;
         withdrawn
@@ -513,12 +523,15 @@ impl Decoder {
                     // only the next heartbeat at the same phase shows the opener was the odd
                     // one and replaces it (else the delayed frame was accepted and got the
                     // genuine one after it flagged, or the first report shown stale).
-                    Err(e @ (FrameError::Untimely { .. } | FrameError::Stale { .. }))
-                        if s.tentative
-                            && release_not_before(link.identity.release & 0x3F, s.identity.release)
-                            && link.counter != s.counter
-                            && diff(now, s.at_us) >= (STATUS_PERIOD_US - TOLERANCE_US) as i64
-                            && (!late_within_period(e) || same_phase(&s, now, &link)) =>
+                    // (Or its release number rose more than the time allows: the one frame may
+                    // have been a corruption of the release number.)
+                    Err(
+                        e @ (FrameError::Untimely { .. } | FrameError::Stale { .. } | FrameError::WrongRelease { .. }),
+                    ) if s.tentative
+                        && release_not_before(link.identity.release & 0x3F, s.identity.release)
+                        && link.counter != s.counter
+                        && diff(now, s.at_us) >= (STATUS_PERIOD_US - TOLERANCE_US) as i64
+                        && (!late_within_period(e) || same_phase(&s, now, &link)) =>
                     {
                         rec.superseded = true;
                         self.open(now, &link, true, rec);
@@ -708,7 +721,7 @@ impl Decoder {
             let by_chain = count.wrapping_sub(claim.chain_next) & 0xF;
             if by_claim < by_chain || (!claim.withdraws && s.chain_wrapped(now)) {
                 rec.withdrawn = s.accept_claim(claim);
-                claim_lost = claim.lost;
+                claim_lost = claim.lost.saturating_sub(claim.provisional);
             } else {
                 s.revert_claim(claim);
                 rec.count_corrupt = true;
@@ -744,21 +757,21 @@ impl Decoder {
         let chain_next = s.next_fault;
         if withdraws {
             // Pending: the chain stays as the reports left it.
-            s.count_claim = Some(CountClaim { count, chain_next, withdraws: true, lost: 0, provisional: false });
+            s.count_claim = Some(CountClaim { count, chain_next, withdraws: true, lost: 0, provisional: 0 });
         } else if behind > 0 && u64::from(behind) <= reports_possible(learnt, now) && !(behind == 15 && own_tick) {
             s.owed_fault = Some(count.wrapping_sub(1) & 0xF);
             s.next_fault = count;
             if behind > 1 && s.last_fault_counter.is_some() {
                 // Reports lost, by this frame's word alone: reported once confirmed.
                 s.count_claim =
-                    Some(CountClaim { count, chain_next, withdraws: false, lost: behind - 1, provisional: false });
+                    Some(CountClaim { count, chain_next, withdraws: false, lost: behind - 1, provisional: 0 });
             } else {
                 lost += behind - 1;
             }
         } else if behind > 0 && !(behind == 15 && own_tick) {
             s.next_fault = count;
             if s.last_fault_counter.is_some() {
-                s.count_claim = Some(CountClaim { count, chain_next, withdraws: false, lost: 0, provisional: false });
+                s.count_claim = Some(CountClaim { count, chain_next, withdraws: false, lost: 0, provisional: 0 });
             }
         }
         if !withdraws {
@@ -880,12 +893,12 @@ impl Decoder {
             let by_chain = counter.wrapping_sub(claim.chain_next) & 0xF;
             if by_claim < by_chain || (!claim.withdraws && s.chain_wrapped(now)) {
                 rec.withdrawn = s.accept_claim(claim);
-                claim_lost = claim.lost;
+                claim_lost = claim.lost.saturating_sub(claim.provisional);
             } else {
                 // Judged against the chain; the next status frame decides.
                 s.next_fault = claim.chain_next;
                 s.owed_fault = None;
-                claim.provisional = true;
+                claim.provisional = claim.provisional.saturating_add(1);
                 claim.chain_next = (counter + 1) & 0xF;
                 s.count_claim = Some(claim);
                 provisional = true;
