@@ -863,7 +863,8 @@ fn a_status_frame_overtaking_its_ticks_report_is_no_loss() {
 
 /// A corruption that keeps the CRC (1 in 256) and raises the release number of one heartbeat:
 /// the genuine frames after it, still of the old release, are accepted and undo the rise. The
-/// tester found them rejected (`wrong_release`, `wrong_crc`).
+/// tester found them rejected (`wrong_release`, `wrong_crc`). A rise further than one release a
+/// second allows (17 in 1 s) is no genuine frame: the corrupted heartbeat itself is flagged.
 #[test]
 fn a_crc_passing_release_corruption_does_not_reject_genuine_frames() {
     let g = genuine_stream(20);
@@ -879,7 +880,11 @@ fn a_crc_passing_release_corruption_does_not_reject_genuine_frames() {
             let mut d = Decoder::new();
             for (i, (t, f)) in s.iter().enumerate() {
                 let r = d.receive(*t, f);
-                assert!(r.result.is_ok(), "raise {raise} at {k}, frame {i}: {r:?}");
+                if i == k && raise > 2 {
+                    assert_eq!(r.result.err().map(|e| e.label()), Some("wrong_release"), "raise {raise} at {k}");
+                } else {
+                    assert!(r.result.is_ok(), "raise {raise} at {k}, frame {i}: {r:?}");
+                }
             }
             assert_eq!(d.identity().map(|i| i.release), Some(4), "raise {raise} at {k}: the rise was undone");
         }
@@ -1156,14 +1161,16 @@ fn insert(stream: &[(u64, CanFrame)], t_us: u64, frame: CanFrame) -> (Vec<(u64, 
 }
 
 /// A report with a plausible time and a counter a few ahead (it claims lost reports) is
-/// accepted, but the next status frame's `FaultReportCount` does not count it: it is withdrawn
-/// (`Reception::withdrawn`), and the genuine reports after it are accepted.
+/// accepted, but the next status frame's `FaultReportCount` does not count it: from then on it
+/// is not current, and the frame after that status frame, agreeing with its count, withdraws it
+/// (`Reception::withdrawn`); the genuine reports after it are accepted.
 #[test]
 fn a_report_the_heartbeat_does_not_count_is_withdrawn() {
     let g = genuine_stream(20);
     let (s, at) = insert(&g, 1_500_000, foreign_report(&g, 150, 3));
     let mut d = Decoder::new();
     let mut withdrawn = 0;
+    let mut after_status = false;
     for (i, (t, f)) in s.iter().enumerate() {
         let r = d.receive(*t, f);
         withdrawn += r.withdrawn;
@@ -1172,11 +1179,62 @@ fn a_report_the_heartbeat_does_not_count_is_withdrawn() {
         } else {
             assert!(r.result.is_ok(), "genuine frame at {t}: {r:?}");
         }
+        if after_status {
+            assert_eq!(r.withdrawn, 1, "withdrawn by the frame after the status frame: {r:?}");
+            after_status = false;
+        }
         if *t == 2_000_000 && is_status(f) {
-            assert_eq!(r.withdrawn, 1, "withdrawn by the next status frame: {r:?}");
+            assert_eq!(r.withdrawn, 0, "one status frame's word alone withdraws nothing: {r:?}");
+            assert!(!d.is_current(1_500_000, 2_000_000), "but the report it leaves out is not current");
+            after_status = true;
         }
     }
     assert_eq!(withdrawn, 1);
+}
+
+/// Finding F7 of the third black-box tester: a corruption of one status frame's
+/// `FaultReportCount` that keeps the CRC (about 1 in 256 corrupted frames) got genuine reports
+/// withdrawn (count below them) or rejected (count ahead of them). The count is the sender's
+/// word, but one frame's word decides nothing when the chain of accepted reports contradicts
+/// it: the next report continues the chain (accepted, stale until the next status frame), and
+/// the next status frame's count agrees with the chain, so the count was corrupt
+/// (`count_corrupt`); nothing is withdrawn, flagged or lost. Every count value but the true one, on a status frame with
+/// reports before and after it.
+#[test]
+fn a_crc_passing_corruption_of_the_fault_report_count_rejects_and_withdraws_nothing() {
+    use pbm::can::codec::frame_payload;
+    let g = genuine_stream(12);
+    // The status frame at 6 s: reports at 5.3 s (a change), 5.4 s ..., and after it at 6.3 s.
+    let at = g.iter().position(|(t, f)| *t == 6_000_000 && is_status(f)).expect("status at 6 s");
+    let (_, bits) = frame_payload(&g[at].1).expect("genuine");
+    let true_link = status_link(bits);
+    let Report::Status(status) =
+        pbm::can::codec::decode_signals(pbm::can::codec::MessageKind::Status, bits).expect("genuine")
+    else {
+        panic!("status")
+    };
+    for count in (0..16u8).filter(|&c| c != true_link.fault_count) {
+        let mut s = g.clone();
+        s[at].1 = encode_status(&status, StatusLink { fault_count: count, ..true_link });
+        let mut d = Decoder::new();
+        let (mut withdrawn, mut lost, mut corrupt) = (0, 0, 0);
+        for (i, (t, f)) in s.iter().enumerate() {
+            let r = d.receive(*t, f);
+            assert!(r.result.is_ok(), "count {count}: frame {i} at {t}: {r:?}");
+            // Until the next status frame decides, a report that continues the chain against the
+            // count is accepted provisionally: shown stale, not current.
+            assert!(!r.stale || (6_000_000..7_000_000).contains(t), "count {count}: frame {i} at {t}: {r:?}");
+            withdrawn += r.withdrawn;
+            lost += r.lost_fault_reports;
+            corrupt += u8::from(r.count_corrupt);
+        }
+        assert_eq!(withdrawn, 0, "count {count}");
+        assert_eq!(lost, 0, "count {count}");
+        // One ahead is the count of the report of the status frame's tick, which that frame
+        // overtook (it came after it): no contradiction, and none needed. Any other is found.
+        let one_ahead = count == (true_link.fault_count + 1) & 0xF;
+        assert_eq!(corrupt, u8::from(!one_ahead), "count {count}");
+    }
 }
 
 /// A report whose counter is behind the count the receiver last learnt, within less time than
@@ -1293,16 +1351,19 @@ fn an_old_heartbeat_heard_first_does_not_lock_out_the_live_monitor() {
 
 /// A status frame replayed 4096 s later, 0.3 s before its genuine twin, while the release number
 /// had moved on (4 then, 40 now): it was accepted as a rise of the release number, and when the
-/// live monitor went on with release 41 every later frame was flagged. Now the genuine twin is
-/// flagged (as documented for lag-4096 replays) and the frames after it are accepted.
+/// live monitor went on with release 41 every later frame was flagged; then (finding F2 of the
+/// third tester) the twin stayed flagged. A sender running on counts at most one release a
+/// second: the replay (28 on in 0.7 s) is flagged, the twin and everything after it accepted.
 #[test]
 fn a_lag_4096_replay_of_an_old_release_does_not_lock_out_the_heartbeat() {
     let mut d = Decoder::new();
     for k in 0..8u16 {
         assert!(d.receive(u64::from(k) * 1_000_000, &status_of(90 + k, 7, 40)).result.is_ok());
     }
-    let _replay = d.receive(7_700_000, &status_of(98, 7, 4));
-    assert!(d.receive(8_000_000, &status_of(98, 7, 40)).result.is_err(), "the twin after the replay");
+    let replay = d.receive(7_700_000, &status_of(98, 7, 4));
+    assert_eq!(replay.result.err().map(|e| e.label()), Some("wrong_release"), "the replay");
+    let twin = d.receive(8_000_000, &status_of(98, 7, 40));
+    assert!(twin.result.is_ok(), "the twin after the replay: {twin:?}");
     for k in 9..20u16 {
         let r = d.receive(u64::from(k) * 1_000_000, &status_of(90 + k, 7, 41));
         assert!(r.result.is_ok(), "{k}: {r:?}");
@@ -1394,12 +1455,43 @@ fn a_restart_with_a_release_jump_is_not_current() {
         let id = Identity { locomotive: 3, release };
         for k in 0..5u16 {
             let t = t0 + u64::from(k) * 1_000_000;
-            assert!(d.receive(t, &status_of(k, 3, release)).result.is_ok(), "{jump}: {k}");
+            // (Its count: the reports sent before it, one a second.)
+            let status =
+                encode_status(&example_status(), StatusLink { counter: k, identity: id, fault_count: k as u8 });
+            assert!(d.receive(t, &status).result.is_ok(), "{jump}: {k}");
             let report = FaultReport { time_since_release_cs: k * 100 + 30, ..example_fault() };
             let r = d.receive(t + 300_000, &encode_fault(&report, k as u8, id));
             assert!(r.result.is_ok(), "{jump}: {r:?}");
             assert_eq!(!r.stale, current, "{jump}: {r:?}");
             assert_eq!(r.restart_jump, if current { 0 } else { jump }, "{jump}");
+        }
+    }
+}
+
+/// Findings F1a/F1b of the third black-box tester: the second heartbeat of a session delayed
+/// 100–900 ms by a gateway was accepted (a session opened on one frame was replaced by it),
+/// and then the genuine heartbeat after it was flagged (`rate_exceeded`) or the first genuine
+/// report shown stale. A heartbeat late by less than a period is flagged and only replaces the
+/// opener when the next one comes at its phase too; here the next one fits the opener.
+#[test]
+fn a_delayed_second_heartbeat_is_flagged_and_the_genuine_frames_after_it_are_current() {
+    let g = genuine_stream(20);
+    let second = g.iter().enumerate().filter(|(_, (_, f))| is_status(f)).nth(1).map(|(i, _)| i).unwrap();
+    for delay_ms in [60u64, 100, 200, 450, 600, 700, 900] {
+        let mut s = g.clone();
+        let (t, f) = s.remove(second);
+        let late = t + delay_ms * 1000;
+        let at = s.iter().position(|(u, _)| *u > late).unwrap_or(s.len());
+        s.insert(at, (late, f));
+        let mut d = Decoder::new();
+        for (i, (t, f)) in s.iter().enumerate() {
+            let r = d.receive(*t, f);
+            if i == at {
+                assert_eq!(r.result.err().map(|e| e.label()), Some("untimely"), "{delay_ms} ms: the delayed one");
+            } else {
+                assert!(r.result.is_ok(), "{delay_ms} ms: genuine frame at {t}: {r:?}");
+                assert!(!r.stale && !r.superseded, "{delay_ms} ms: genuine frame at {t}: {r:?}");
+            }
         }
     }
 }

@@ -22,9 +22,11 @@
 //! - have come `d` seconds after the session clock, within [`TOLERANCE_US`] plus 200 ppm
 //!   clock drift late or half a second early, else [`FrameError::Untimely`] (delayed, or a
 //!   replay at the wrong moment);
-//! - not go back in release number, else [`FrameError::WrongRelease`] (unless it goes back to
-//!   the release before a rise that rests on one heartbeat: that rise was a corruption the CRC
-//!   missed, and is undone).
+//! - not go back in release number, nor rise further than one release a second allows (the
+//!   sender running on counts release commands only), else [`FrameError::WrongRelease`]
+//!   (unless it goes back to the release before a rise that rests on one heartbeat: that rise
+//!   was a corruption the CRC missed, and is undone; after a silence long enough, a number
+//!   32–63 "behind" is that many releases on).
 //!
 //! The session clock (when the next heartbeat is due) is the earliest receive time the
 //! accepted heartbeats imply; one early heartbeat does not move it, the next one early the
@@ -76,11 +78,14 @@
 //!   vouch for that contradicts it replaces it ([`Reception::withdrawn`]).
 //!
 //! A status frame whose `FaultReportCount` leaves out reports this receiver accepted (longer
-//! after them than any latency difference allowed, so not the report of its own tick) shows
-//! the monitor never sent them: they are withdrawn ([`Reception::withdrawn`]) and the receiver
-//! goes back to what it held before them. That is what catches a fault report of another
-//! locomotive whose CRC happens to pass (one of the CRC's 15 identity collisions, or a
-//! corruption that kept the CRC) when its time since release fits.
+//! after them than any latency difference allowed, so not the report of its own tick) says
+//! the monitor never sent them — or its count is a corruption the CRC missed. One frame's word
+//! decides nothing (`CountClaim`): the reports are not current from then on, and the next
+//! report that continues the count, or the next status frame, decides; the count winning
+//! withdraws them ([`Reception::withdrawn`]) and the receiver goes back to what it held before
+//! them, the chain winning shows the count corrupt ([`Reception::count_corrupt`]). That is what
+//! catches a fault report of another locomotive whose CRC happens to pass (one of the CRC's 15
+//! identity collisions, or a corruption that kept the CRC) when its time since release fits.
 //!
 //! Before any heartbeat a fault report cannot be attributed: [`FrameError::NoHeartbeat`]. One
 //! that comes while a heartbeat is overdue, or after the heartbeat timed out (judged against
@@ -108,6 +113,10 @@ const TAU_SATURATED: u16 = 4095;
 /// How much earlier than its release start predicts a fault report may come (the start was
 /// estimated from a delayed report).
 const FAULT_EARLY_US: u64 = 500_000;
+/// The shortest time between two release commands the receiver assumes when a silence may have
+/// hidden half the release number's range or more (a release command, the valve opening and
+/// its report take longer than this).
+const MIN_RELEASE_US: u64 = STATUS_PERIOD_US;
 /// Heartbeat counter modulus (12 bits).
 const COUNTER_MOD: u16 = 4096;
 /// How far the receiver follows a lasting rise of the bus latency (a latency step, a gateway
@@ -208,6 +217,49 @@ struct Session {
     /// yet, and how many such reports there are: a later status frame whose count does not
     /// include them shows they were not sent by this monitor, and they are withdrawn.
     unconfirmed: Option<Unconfirmed>,
+    /// The last status frame's `FaultReportCount` contradicted the reports this receiver
+    /// accepted, and rests on that one frame's word: see [`CountClaim`].
+    count_claim: Option<CountClaim>,
+    /// The release and release start of the last first report of a release flagged as late
+    /// for the release's first heartbeat: a latency step that began at that report shows the
+    /// same start in the next one, which is then accepted (else every report of the release's
+    /// first second was flagged, up to 11).
+    first_late: Option<(u8, i64)>,
+}
+
+/// A status frame's `FaultReportCount` that contradicts the chain of the accepted reports'
+/// counters: it leaves out reports accepted since the status frame before (they would be
+/// withdrawn), or it is more than one ahead (reports lost). Either the reports are not the
+/// monitor's (a CRC-passing report of another locomotive) or they were lost, or the count is
+/// a corruption the CRC missed (about 1 in 256 corrupted frames). One frame's word does not
+/// decide it. A fault report that continues the count with fewer reports lost than the chain
+/// decides for the count at once; one that continues the chain is accepted on the chain's
+/// word, provisionally (not current), and the next status frame decides — the monitor's own
+/// word, which a second sender's reports at a colliding identity cannot give — by whichever of
+/// the two needs fewer lost reports to reach its count (the monitor's count only grows, and
+/// genuine frames are rarely lost). The count winning withdraws the reports it leaves out and
+/// the provisional ones; the chain winning shows the status frame was corrupt
+/// ([`Reception::count_corrupt`]) and confirms them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct CountClaim {
+    /// The count the status frame gave (the next `FaultCounter`, by its word).
+    count: u8,
+    /// The next `FaultCounter` by the accepted reports when the status frame came.
+    chain_next: u8,
+    /// The count leaves out accepted reports ([`Session::unconfirmed`]): withdrawing them is
+    /// pending, and they are not current meanwhile.
+    withdraws: bool,
+    /// Reports lost by the count's word (reported once the count is confirmed).
+    lost: u8,
+    /// Reports accepted since on the chain's word ([`Session::unconfirmed`]).
+    provisional: u8,
+}
+
+impl CountClaim {
+    /// Reports accepted that the claim, should it win, withdraws: not current meanwhile.
+    const fn pending_reports(&self) -> bool {
+        self.withdraws || self.provisional > 0
+    }
 }
 
 impl Session {
@@ -215,6 +267,43 @@ impl Session {
     /// frame (`FaultReportCount`) or fault report (its counter), whichever came later.
     fn count_learnt_us(&self) -> u64 {
         self.fault.map_or(self.at_us, |f| f.at_us.max(self.at_us))
+    }
+
+    /// Could the sender have sent 16 reports or more since the last one accepted? The 4-bit
+    /// counter may then have gone round: the chain of accepted reports cannot contradict a
+    /// status frame's count that says reports were lost (a burst of 16 lost reports looks like
+    /// no loss).
+    fn chain_wrapped(&self, now: u64) -> bool {
+        self.fault.is_none_or(|f| reports_possible(f.at_us, now) >= 16)
+    }
+
+    /// The chain of the accepted reports was right and the status frame's count `claim` was
+    /// corrupt: the receiver's counters go back to the chain, and the reports the count left
+    /// out, and those accepted since on the chain's word, are confirmed.
+    fn revert_claim(&mut self, claim: CountClaim) {
+        self.unconfirmed = None;
+        self.next_fault = claim.chain_next;
+        self.status_count = claim.chain_next;
+        self.owed_fault = None;
+    }
+
+    /// The status frame's count `claim` was right: the reports it left out, and those accepted
+    /// since on the chain's word, are withdrawn (how many), and the counters follow the count.
+    /// A count ahead of the chain (reports lost by its word) contradicts no report accepted on
+    /// the chain's word since: those are the reports it counted, arriving late (a jitter that
+    /// reorders frames), and are confirmed, not lost.
+    fn accept_claim(&mut self, claim: CountClaim) -> u8 {
+        let withdrawn = if claim.withdraws {
+            self.withdraw_unconfirmed()
+        } else {
+            if claim.provisional > 0 {
+                self.unconfirmed = None;
+            }
+            0
+        };
+        self.next_fault = claim.count;
+        self.status_count = claim.count;
+        withdrawn
     }
 
     /// Takes back the fault reports no status frame has counted: the fault-report state goes
@@ -281,6 +370,11 @@ pub struct Reception {
     /// an old start-up recording replayed (the release number wraps at 64), so its fault reports
     /// are stale, never current. 0 when not.
     pub restart_jump: u8,
+    /// The `FaultReportCount` of the status frame before this frame contradicted the reports
+    /// accepted before and after it (and the counts around it): it was corrupted in a way the
+    /// CRC missed, and the receiver ignored it (the reports it left out are kept, the loss it
+    /// claimed was none).
+    pub count_corrupt: bool,
 }
 
 /// Stream decoder of the monitor's frames.
@@ -338,8 +432,12 @@ impl Decoder {
             Some(s) => {
                 now_us.saturating_sub(s.at_us) <= HEARTBEAT_TIMEOUT_US
                     && s.fault.is_some_and(|f| f.at_us == accepted_us)
-                    // Not accepted while a heartbeat was overdue (`Reception::stale`).
-                    && accepted_us.saturating_sub(s.at_us) < STATUS_PERIOD_US + TOLERANCE_US
+                    // Not accepted while a heartbeat was overdue (`Reception::stale`; a heartbeat
+                    // received late within the latency step followed is not overdue).
+                    && accepted_us.saturating_sub(s.at_us)
+                        < STATUS_PERIOD_US + TOLERANCE_US + late_heartbeat(&s).map_or(0, |l| STATUS_PERIOD_US + l)
+                    // Not left out by the last status frame's count (pending: `CountClaim`).
+                    && !s.count_claim.is_some_and(|c| c.pending_reports())
             }
             None => false,
         }
@@ -367,11 +465,17 @@ impl Decoder {
             stale: false,
             withdrawn: 0,
             restart_jump: 0,
+            count_corrupt: false,
         };
-        if let Some(s) = self.session {
+        if let Some(mut s) = self.session {
             let silence = now_us.saturating_sub(s.at_us);
             if silence > HEARTBEAT_TIMEOUT_US {
                 rec.heartbeat_lost_us = Some(silence);
+                // The monitor's last count left out reports and nothing came to contradict it:
+                // its word stands.
+                if s.count_claim.take().is_some_and(|c| c.pending_reports()) {
+                    rec.withdrawn = s.withdraw_unconfirmed();
+                }
                 // A tentative session never confirmed is not worth remembering over the one
                 // before it.
                 if !s.tentative || self.lost.is_none() {
@@ -414,11 +518,20 @@ impl Decoder {
                     // not fit its clock replaces it.
                     // (Its counter may look older too: the one frame may have been a corruption
                     // of the counter that kept the CRC.)
-                    Err(FrameError::Untimely { .. } | FrameError::Stale { .. })
-                        if s.tentative
-                            && release_not_before(link.identity.release & 0x3F, s.identity.release)
-                            && link.counter != s.counter
-                            && diff(now, s.at_us) >= (STATUS_PERIOD_US - TOLERANCE_US) as i64 =>
+                    // A newer heartbeat late by less than a period is what a delayed second
+                    // heartbeat looks like (the opener was on time): flagged, its phase kept;
+                    // only the next heartbeat at the same phase shows the opener was the odd
+                    // one and replaces it (else the delayed frame was accepted and got the
+                    // genuine one after it flagged, or the first report shown stale).
+                    // (Or its release number rose more than the time allows: the one frame may
+                    // have been a corruption of the release number.)
+                    Err(
+                        e @ (FrameError::Untimely { .. } | FrameError::Stale { .. } | FrameError::WrongRelease { .. }),
+                    ) if s.tentative
+                        && release_not_before(link.identity.release & 0x3F, s.identity.release)
+                        && link.counter != s.counter
+                        && diff(now, s.at_us) >= (STATUS_PERIOD_US - TOLERANCE_US) as i64
+                        && (!late_within_period(e) || same_phase(&s, now, &link)) =>
                     {
                         rec.superseded = true;
                         self.open(now, &link, true, rec);
@@ -552,6 +665,8 @@ impl Decoder {
             release_prev: None,
             owed_fault: None,
             unconfirmed: None,
+            count_claim: None,
+            first_late: None,
         });
         // A tentative session rests on one frame, which may be a replay: what it says of the
         // locomotive's newest release is believed only once a second heartbeat confirms it
@@ -565,7 +680,11 @@ impl Decoder {
     /// Accepts a status frame that continues session `s` (`c`: how, from [`continuation`]).
     fn accept_status(&mut self, mut s: Session, now: u64, link: &StatusLink, c: Continues, rec: &mut Reception) {
         let d = c.periods;
-        rec.lost_status = u16::try_from(d.saturating_sub(1)).unwrap_or(u16::MAX).saturating_sub(s.overdue_reported);
+        // (The heartbeat before this one at its phase was received, flagged: not lost.)
+        let received_late = u64::from(late_heartbeat(&s).is_some() && c.phase == Phase::Step);
+        rec.lost_status = u16::try_from(d.saturating_sub(1).saturating_sub(received_late))
+            .unwrap_or(u16::MAX)
+            .saturating_sub(s.overdue_reported);
         s.overdue_reported = 0;
         let release = link.identity.release & 0x3F;
         if c.undo_release {
@@ -594,6 +713,21 @@ impl Decoder {
         let since_report = s.fault.map_or(u64::MAX, |f| now.saturating_sub(f.at_us));
         // The report of this frame's own tick may come first without being counted by it.
         let own_tick = since_report <= MAX_LATENCY_STEP_US + TOLERANCE_US;
+        // A count of the status frame before that contradicted the reports' chain is decided
+        // by this one: whichever needs fewer lost reports to reach this count was right.
+        let mut claim_lost = 0;
+        if let Some(claim) = s.count_claim.take() {
+            let by_claim = count.wrapping_sub(claim.count) & 0xF;
+            let by_chain = count.wrapping_sub(claim.chain_next) & 0xF;
+            if by_claim < by_chain || (!claim.withdraws && s.chain_wrapped(now)) {
+                rec.withdrawn = s.accept_claim(claim);
+                claim_lost = claim.lost.saturating_sub(claim.provisional);
+            } else {
+                s.revert_claim(claim);
+                rec.count_corrupt = true;
+            }
+        }
+        let mut withdraws = false;
         if s.unconfirmed.is_some() {
             if reports_possible(s.at_us, now) >= 16 {
                 s.unconfirmed = None;
@@ -605,8 +739,9 @@ impl Decoder {
                 if last < sent {
                     s.unconfirmed = None;
                 } else if !(last == sent && own_tick) {
-                    // The monitor never sent them: withdrawn.
-                    rec.withdrawn = s.withdraw_unconfirmed();
+                    // The monitor never sent them, or this count is corrupt: withdrawn once the
+                    // next frame agrees with this count ([`CountClaim`]).
+                    withdraws = true;
                 }
             }
         }
@@ -617,16 +752,31 @@ impl Decoder {
         // this frame's tick came first (nothing lost), or a count the receiver held came from a
         // status frame corrupted in a way the CRC missed (the count only grows: this one is right).
         let learnt = s.count_learnt_us();
-        let mut lost = u8::from(s.owed_fault.take().is_some());
+        let mut lost = u8::from(s.owed_fault.take().is_some()).saturating_add(claim_lost);
         let behind = count.wrapping_sub(s.next_fault) & 0xF;
-        if behind > 0 && u64::from(behind) <= reports_possible(learnt, now) && !(behind == 15 && own_tick) {
-            lost += behind - 1;
+        let chain_next = s.next_fault;
+        if withdraws {
+            // Pending: the chain stays as the reports left it.
+            s.count_claim = Some(CountClaim { count, chain_next, withdraws: true, lost: 0, provisional: 0 });
+        } else if behind > 0 && u64::from(behind) <= reports_possible(learnt, now) && !(behind == 15 && own_tick) {
             s.owed_fault = Some(count.wrapping_sub(1) & 0xF);
             s.next_fault = count;
+            if behind > 1 && s.last_fault_counter.is_some() {
+                // Reports lost, by this frame's word alone: reported once confirmed.
+                s.count_claim =
+                    Some(CountClaim { count, chain_next, withdraws: false, lost: behind - 1, provisional: 0 });
+            } else {
+                lost += behind - 1;
+            }
         } else if behind > 0 && !(behind == 15 && own_tick) {
             s.next_fault = count;
+            if s.last_fault_counter.is_some() {
+                s.count_claim = Some(CountClaim { count, chain_next, withdraws: false, lost: 0, provisional: 0 });
+            }
         }
-        s.status_count = count;
+        if !withdraws {
+            s.status_count = count;
+        }
         rec.lost_fault_reports = lost;
         // The session clock: when a frame with this counter was due.
         let span = d.saturating_mul(STATUS_PERIOD_US);
@@ -665,7 +815,7 @@ impl Decoder {
         s.tentative = false;
         self.session = Some(s);
         self.remember(link);
-        if c.undo_release {
+        if c.undo_release || c.release_wrapped {
             self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
         }
         rec.identity = Some(s.identity);
@@ -681,6 +831,17 @@ impl Decoder {
     }
 
     fn fault(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
+        let withdrawn_before = rec.withdrawn;
+        let result = self.judge_fault(now, bits, rec);
+        if result.is_err() {
+            // A flagged frame moves nothing: what judging it would have withdrawn stays.
+            rec.withdrawn = withdrawn_before;
+            rec.count_corrupt = false;
+        }
+        result
+    }
+
+    fn judge_fault(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
         // After a silence the report is judged against the session lost to it (the sender may
         // well be alive: a fresh report of its release shows it), but it is not current: no
         // live heartbeat vouches for it ([`Reception::stale`]). It does not reopen the session,
@@ -720,6 +881,29 @@ impl Decoder {
             }
         }
         let counter = l::FAULT_COUNTER.get(bits) as u8;
+        // A status frame's count that contradicted the chain of accepted reports is decided by
+        // this report (kept only if it is accepted): whichever of the two it continues with
+        // fewer reports lost was right ([`CountClaim`]). The report the status frame overtook
+        // (one before its count) continues the count.
+        let mut claim_lost = 0;
+        let mut provisional = false;
+        if let Some(mut claim) = s.count_claim.take() {
+            let overtaken = !claim.withdraws && counter == claim.count.wrapping_sub(1) & 0xF;
+            let by_claim = if overtaken { 0 } else { counter.wrapping_sub(claim.count) & 0xF };
+            let by_chain = counter.wrapping_sub(claim.chain_next) & 0xF;
+            if by_claim < by_chain || (!claim.withdraws && s.chain_wrapped(now)) {
+                rec.withdrawn = s.accept_claim(claim);
+                claim_lost = claim.lost.saturating_sub(claim.provisional);
+            } else {
+                // Judged against the chain; the next status frame decides.
+                s.next_fault = claim.chain_next;
+                s.owed_fault = None;
+                claim.provisional = claim.provisional.saturating_add(1);
+                claim.chain_next = (counter + 1) & 0xF;
+                s.count_claim = Some(claim);
+                provisional = true;
+            }
+        }
         let key = bits & !(l::FAULT_CRC.mask() | l::FAULT_COUNTER.mask() | l::TIME_SINCE_RELEASE.mask());
         let slack = (TOLERANCE_US + TAU_ROUNDING_US) as i64;
         let start = diff(now, tau_us);
@@ -754,7 +938,7 @@ impl Decoder {
                     && self.first_of_release(&s, identity, start, slack) == Ok(false);
                 if replaces {
                     replaced = true;
-                    rec.withdrawn = s.withdraw_unconfirmed();
+                    rec.withdrawn = rec.withdrawn.saturating_add(s.withdraw_unconfirmed());
                     if rec.withdrawn == 0 {
                         // The report it replaces had been counted by a status frame already.
                         rec.withdrawn = 1;
@@ -827,12 +1011,12 @@ impl Decoder {
                         late_start_us: None,
                     }
                 } else {
-                    let unverified = self.first_of_release(&s, identity, start, slack)?;
+                    let unverified = self.first_report(&s, identity, start, slack, in_lost)?;
                     FaultTrack::first(now, identity.release, tau, start, key, counter, unverified)
                 }
             }
             None => {
-                let unverified = self.first_of_release(&s, identity, start, slack)?;
+                let unverified = self.first_report(&s, identity, start, slack, in_lost)?;
                 FaultTrack::first(now, identity.release, tau, start, key, counter, unverified)
             }
         };
@@ -877,20 +1061,31 @@ impl Decoder {
             // (A report the status frame overtook is the owed one: d = 15.)
             lost += d;
         }
-        rec.lost_fault_reports = lost;
+        rec.lost_fault_reports = lost.saturating_add(claim_lost);
         s.next_fault = (counter + 1) & 0xF;
         s.last_fault_counter = Some(counter);
         // Heartbeats overdue at this moment were lost (a deleted status frame is noticed even
         // when no status frame follows before the sender stops).
         let overdue = (now.saturating_sub(s.at_us).saturating_sub(TOLERANCE_US) / STATUS_PERIOD_US)
             .min(u64::from(u16::MAX)) as u16;
-        if overdue > s.overdue_reported {
-            rec.lost_status = overdue - s.overdue_reported;
-            s.overdue_reported = overdue;
+        // A heartbeat that came late and was flagged (the first of a latency step, or delayed)
+        // was not lost, and its lateness, up to the latency step the receiver follows, delays
+        // when the next one is missed (else a latency step claimed a lost status frame, and the
+        // reports of the second after it were shown stale though the sender was heard).
+        let missed = match late_heartbeat(&s) {
+            Some(late_us) => {
+                let m = now.saturating_sub(s.at_us).saturating_sub(TOLERANCE_US + late_us) / STATUS_PERIOD_US;
+                (m.min(u64::from(u16::MAX)) as u16).saturating_sub(1)
+            }
+            None => overdue,
+        };
+        if missed > s.overdue_reported {
+            rec.lost_status = missed - s.overdue_reported;
+            s.overdue_reported = missed;
         }
         // No heartbeat on time vouches for it: accepted (it may be genuine: a status frame was
         // lost), but not current (a delayed stream, whose heartbeats are flagged, shows here).
-        rec.stale = overdue > 0 || track.unverified || s.restart_jump > 0;
+        rec.stale = missed > 0 || track.unverified || s.restart_jump > 0 || provisional;
         rec.restart_jump = s.restart_jump;
         if undo_release {
             self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
@@ -917,6 +1112,30 @@ impl Decoder {
         }
     }
 
+    /// [`Decoder::first_of_release`] for a report about to be accepted as the first of its
+    /// release: a report flagged as late for the release's first heartbeat leaves its release
+    /// start as evidence of a latency step ([`Session::first_late`]), which the next report
+    /// confirms by agreeing with it.
+    fn first_report(
+        &mut self,
+        s: &Session,
+        identity: Identity,
+        start: i64,
+        slack: i64,
+        in_lost: bool,
+    ) -> Result<bool, FrameError> {
+        let r = self.first_of_release(s, identity, start, slack);
+        if let Err(FrameError::Untimely { off_ms }) = r {
+            if off_ms < 0 {
+                let held = if in_lost { self.lost.as_mut() } else { self.session.as_mut() };
+                if let Some(h) = held {
+                    h.first_late = Some((identity.release, start));
+                }
+            }
+        }
+        r
+    }
+
     /// The first report of a release must place its release command in the window the
     /// heartbeats allow. `Ok(true)`: the window has no lower bound (no heartbeat of the
     /// previous release seen) and the start lies before the monitor's power-up as the session's
@@ -937,9 +1156,14 @@ impl Decoder {
         }
         if let Some(lt) = latest {
             // (A latency step the session clock followed since lets the reports come later
-            // than the release's first heartbeat did, by up to that step.)
+            // than the release's first heartbeat did, by up to that step; so does a step the
+            // report flagged before this one showed, at the same release start: a latency
+            // step that began at the release's first report.)
             let off = start.saturating_sub(diff(lt, 0));
-            if off > slack.saturating_add(s.lag_us) {
+            let step_shown =
+                s.first_late.is_some_and(|(r, ls)| r == identity.release && start.saturating_sub(ls).abs() <= slack)
+                    && off <= slack.saturating_add(MAX_LATENCY_STEP_US as i64);
+            if off > slack.saturating_add(s.lag_us) && !step_shown {
                 return Err(FrameError::Untimely { off_ms: -ms(off) });
             }
         }
@@ -969,6 +1193,28 @@ struct Continues {
     phase: Phase,
     /// It goes back to the release before a rise that rested on one heartbeat.
     undo_release: bool,
+    /// Its release number looks older (modulo 64) but a silence long enough lay before it: the
+    /// sender went on by more than half the release number's range.
+    release_wrapped: bool,
+}
+
+/// A newer heartbeat of session `s` flagged as late ([`Session::off_phase`]) by no more than
+/// the latency step the receiver follows: how late it was, µs.
+fn late_heartbeat(s: &Session) -> Option<u64> {
+    let (c, at) = s.off_phase?;
+    let dp = c.wrapping_sub(s.counter) % COUNTER_MOD;
+    if !(1..COUNTER_MOD / 2).contains(&dp) {
+        return None;
+    }
+    let due = s.anchor_us.saturating_add(i64::from(dp) * STATUS_PERIOD_US as i64);
+    let late = diff(at, 0).saturating_sub(due);
+    (late > 0 && late.saturating_add(s.lag_us) <= MAX_LATENCY_STEP_US as i64).then_some(late.unsigned_abs())
+}
+
+/// A heartbeat flagged late by less than a period (less the tolerance): delayed, not a counter
+/// that disagrees with the clock by whole periods.
+fn late_within_period(e: FrameError) -> bool {
+    matches!(e, FrameError::Untimely { off_ms } if off_ms > 0 && i64::from(off_ms) < ((STATUS_PERIOD_US - TOLERANCE_US) / 1000) as i64)
 }
 
 /// Was the last off-phase heartbeat of `s` at the phase of this one (`d` periods apart, within
@@ -1028,15 +1274,33 @@ fn continuation(s: &Session, now: u64, link: &StatusLink) -> Result<Continues, F
         Phase::OnTime
     };
     let release = link.identity.release & 0x3F;
+    // The same sender running on (its counter continues: it never powered down) only counts
+    // its release number up, by release commands, at most one per MIN_RELEASE_US (and the one
+    // of this period): `on` releases since the last heartbeat. More than the time allows is
+    // no genuine frame: a lag-4096 replay of another release ahead of its genuine twin (which
+    // was accepted, got the twin flagged, and its count the genuine reports withdrawn), or a
+    // corruption the CRC missed.
+    let on = release.wrapping_sub(s.identity.release) & 0x3F;
+    let possible = 1 + gap.max(0).unsigned_abs() / MIN_RELEASE_US;
     let mut undo_release = false;
-    if !release_not_before(release, s.identity.release) {
-        // Back to the release before a rise that rests on one heartbeat, or on from it: that
-        // heartbeat was a corruption the CRC missed, or a replay (of a release 4096 s old).
-        if s.release_prev.is_some_and(|(r, ..)| release_not_before(release, r)) {
-            undo_release = true;
+    let mut release_wrapped = false;
+    // Back to the release before a rise that rests on one heartbeat, or on from it: that
+    // heartbeat was a corruption the CRC missed, or a replay (of a release 4096 s old).
+    if !release_not_before(release, s.identity.release)
+        && s.release_prev.is_some_and(|(r, ..)| release_not_before(release, r))
+    {
+        undo_release = true;
+    } else if u64::from(on) > possible {
+        return Err(FrameError::WrongRelease { expected: s.identity.release, got: link.identity.release });
+    } else if !release_not_before(release, s.identity.release) {
+        // 32–63 on looks 32–63 behind modulo 64: after a silence (a receiver cut off while the
+        // releases happened: else it refused the live monitor for good) it is taken as on;
+        // within a session that is no genuine frame.
+        if gap > HEARTBEAT_TIMEOUT_US as i64 {
+            release_wrapped = true;
         } else {
             return Err(FrameError::WrongRelease { expected: s.identity.release, got: link.identity.release });
         }
     }
-    Ok(Continues { periods: d, phase, undo_release })
+    Ok(Continues { periods: d, phase, undo_release, release_wrapped })
 }

@@ -134,6 +134,9 @@ pub struct DecodeSummary {
     /// Fault reports accepted, then withdrawn because the monitor's heartbeat did not count
     /// them ([`pbm::can::Reception::withdrawn`]).
     pub withdrawn: u64,
+    /// Status frames whose `FaultReportCount` the reports and counts around them showed to be
+    /// corrupt (a corruption the CRC missed; [`pbm::can::Reception::count_corrupt`]).
+    pub corrupt_counts: u64,
 }
 
 impl DecodeSummary {
@@ -152,6 +155,7 @@ impl DecodeSummary {
             + self.superseded
             + self.stale_reports
             + self.withdrawn
+            + self.corrupt_counts
     }
 }
 
@@ -177,6 +181,9 @@ impl std::fmt::Display for DecodeSummary {
         }
         if self.withdrawn > 0 {
             write!(f, "; {} fault reports withdrawn (not counted by the monitor's heartbeat)", self.withdrawn)?;
+        }
+        if self.corrupt_counts > 0 {
+            write!(f, "; {} status frames with a corrupt fault-report count (ignored)", self.corrupt_counts)?;
         }
         if self.stale_reports > 0 {
             write!(
@@ -394,6 +401,7 @@ impl<W: Write> CabDisplay<W> {
             stale: false,
             withdrawn: 0,
             restart_jump: 0,
+            count_corrupt: false,
         }
     }
 
@@ -465,6 +473,16 @@ impl<W: Write> CabDisplay<W> {
                     time_text(t),
                     reception.withdrawn,
                     first.map_or_else(|| "-".to_owned(), |(at, _)| time_text(self.rel(at)).trim_start().to_owned())
+                )?;
+            }
+        }
+        if reception.count_corrupt {
+            self.summary.corrupt_counts += 1;
+            if text {
+                writeln!(
+                    self.out,
+                    "{} s  !! the last status frame's fault-report count contradicted the reports before and after it: a corruption the CRC missed, ignored",
+                    time_text(t)
                 )?;
             }
         }
@@ -622,13 +640,14 @@ fn run_decode(a: &DecodeOptions) -> Result<()> {
         }
         if summary.problems() > 0 {
             return Err(CheckFailed(format!(
-                "--strict: {} frames flagged, {} status frames and {} fault reports lost, {} replayed sessions, {} stale and {} withdrawn fault reports",
+                "--strict: {} frames flagged, {} status frames and {} fault reports lost, {} replayed sessions, {} stale and {} withdrawn fault reports, {} corrupt fault-report counts",
                 summary.flagged_total(),
                 summary.lost_status,
                 summary.lost_fault_reports,
                 summary.superseded,
                 summary.stale_reports,
-                summary.withdrawn
+                summary.withdrawn,
+                summary.corrupt_counts
             ))
             .into());
         }

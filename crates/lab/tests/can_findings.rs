@@ -1,0 +1,110 @@
+//! The third black-box tester's reproducers (candump logs in `tests/data/can_findings/`, as
+//! the tester left them; can/README.md lists the findings): each is decoded frame by frame and
+//! only the lines the tester disturbed may be flagged, and no genuine report may be shown stale
+//! or withdrawn.
+
+use pbm::can::{Decoder, Report};
+use pbm_io::can_log::read_log;
+
+/// What became of each line (1-based line numbers).
+#[derive(Debug, Default)]
+struct Outcome {
+    flagged: Vec<usize>,
+    stale: Vec<usize>,
+    withdrawn: Vec<usize>,
+    corrupt_counts: usize,
+}
+
+fn decode(name: &str) -> Outcome {
+    let path = format!("{}/tests/data/can_findings/{name}", env!("CARGO_MANIFEST_DIR"));
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mut d = Decoder::new();
+    let mut o = Outcome::default();
+    let mut accepted = Vec::new();
+    for (i, rec) in read_log(&bytes[..]).enumerate() {
+        let rec = rec.unwrap_or_else(|e| panic!("{name}: {e:?}"));
+        let line = i + 1;
+        let r = d.receive(rec.time_us, &rec.frame);
+        for _ in 0..r.withdrawn {
+            if let Some(l) = accepted.pop() {
+                o.withdrawn.push(l);
+            }
+        }
+        o.corrupt_counts += usize::from(r.count_corrupt);
+        match r.result {
+            Err(_) => o.flagged.push(line),
+            Ok(Report::Fault(_)) => {
+                accepted.push(line);
+                if r.stale {
+                    o.stale.push(line);
+                }
+            }
+            Ok(Report::Status(_)) => {}
+        }
+    }
+    o
+}
+
+/// F7: a CRC-keeping corruption of one heartbeat's `FaultReportCount` (line 21, 14 → 6) made
+/// the receiver claim 8 lost reports or withdraw the genuine report before it; now the reports
+/// around it and the next heartbeat's count show the count corrupt, and nothing is flagged,
+/// lost or withdrawn. The one report between the corrupt heartbeat and the next (line 22) is
+/// shown stale until that heartbeat decides.
+#[test]
+fn f7_a_corrupted_fault_report_count_withdraws_nothing() {
+    let o = decode("F7_crc_passing_corruption_of_FaultReportCount_withdraws_genuine_report.log");
+    assert!(o.flagged.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+    assert_eq!(o.stale, vec![22], "{o:?}");
+    assert_eq!(o.corrupt_counts, 1, "{o:?}");
+}
+
+/// F1a / F1b: the session's second heartbeat (line 2) delayed 700 ms / 200 ms was accepted, and
+/// the next genuine heartbeat flagged or the first genuine report shown stale; now the delayed
+/// one alone is flagged.
+#[test]
+fn f1_a_delayed_second_heartbeat_alone_is_flagged() {
+    for name in [
+        "F1a_delayed_2nd_heartbeat_accepted_genuine_rejected.log",
+        "F1b_delayed_2nd_heartbeat_makes_first_report_stale.log",
+    ] {
+        let o = decode(name);
+        assert_eq!(o.flagged, vec![2], "{name}: {o:?}");
+        assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{name}: {o:?}");
+    }
+}
+
+/// F10: a receiver cut off for 1265 s while the monitor went from release 8 to 40 (32 on: the
+/// 6-bit number looks 32 behind) refused every later frame as `wrong_release`. The heartbeat
+/// continues the session in time (the sender never powered down), so it only counted releases
+/// up: accepted. Only the report before the first heartbeat (line 1) and the reports between
+/// the silence and the first heartbeat after it, which no live heartbeat attributes, may be
+/// flagged.
+#[test]
+fn f10_a_receiver_outage_over_32_releases_resynchronises() {
+    let o = decode("F10_receiver_outage_release_advanced_32_locks_out.log");
+    assert!(o.flagged.iter().all(|&l| l == 1), "{o:?}");
+    assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+}
+
+/// F5: a latency step of 123 ms beginning at release 5's first report (line 28; every line
+/// genuine) got the heartbeat at the step and the first 11 reports of the release flagged, and
+/// a status frame claimed lost. Now the step is followed from the second frame of each message
+/// on: the heartbeat and the report at the step (lines 28, 29: a delayed frame looks the same)
+/// are flagged, nothing else; no status frame is claimed lost and no report shown stale.
+#[test]
+fn f5_a_latency_step_at_a_releases_first_report_flags_one_frame_of_each_message() {
+    let o = decode("F5_latency_step_at_release_start_flags_11_reports.log");
+    assert_eq!(o.flagged, vec![28, 29], "{o:?}");
+    assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+}
+
+/// F2: a status frame replayed 4096 s later (line 15, release 4 while the monitor is at 40),
+/// 0.3 s before its genuine twin, was accepted and the twin flagged (and, before that, the
+/// genuine frames locked out). A sender running on counts at most one release a second: the
+/// replay alone is flagged.
+#[test]
+fn f2_a_lag_4096_replay_of_another_release_alone_is_flagged() {
+    let o = decode("F2_lag4096_status_replay_other_release_locks_out.log");
+    assert_eq!(o.flagged, vec![15], "{o:?}");
+    assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+}
