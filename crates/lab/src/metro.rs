@@ -179,13 +179,14 @@ trait MetroModel {
 /// give the wall temperatures w₁, w₂, w₃ at their ends, which approach that temperature
 /// geometrically (the wall is a first-order store, nearly linear over a cycle), so Aitken's
 /// extrapolation w₃ − (w₃ − w₂)² / (w₃ − 2w₂ + w₁) gives it even when τ_w spans many cycles;
-/// a fourth cycle then settles the gas to it. Returns whether it ran; a model without a slow
-/// state is left as it is.
-fn spin_up<M: MetroModel>(rows: &[MetroRow], model: &mut M) -> bool {
+/// a fourth cycle then settles the gas to it. Returns the row the run then starts at
+/// ([`model_start`]), or `None` when it did not run: a model without a slow state is left as it
+/// is.
+fn spin_up<M: MetroModel>(rows: &[MetroRow], model: &mut M) -> Option<usize> {
     if !model.has_slow_state() {
-        return false;
+        return None;
     }
-    let Some(&(l, _, n)) = complete_cycles(rows).first() else { return false };
+    let &(l, _, n) = complete_cycles(rows).first()?;
     let cycle = &rows[l - 1..n];
     let mut w = [0.0; 3];
     for wk in &mut w {
@@ -198,7 +199,7 @@ fn spin_up<M: MetroModel>(rows: &[MetroRow], model: &mut M) -> bool {
         model.set_wall_theta(w[2] + d2 * ratio / (1.0 - ratio));
         drive(cycle, model, &Switches::MIDPOINT, &[]);
     }
-    true
+    Some(l - 1)
 }
 
 impl MetroModel for Reservoir {
@@ -336,7 +337,7 @@ pub fn estimate_switches(rows: &[MetroRow], params: &ReservoirParams, events: &[
     // model's to follow ([`model_start`]).
     let lead = model_start(rows);
     let mut carried = Reservoir::new(params).ok()?;
-    let warm = spin_up(rows, &mut carried);
+    let warm = spin_up(rows, &mut carried).is_some();
     for seg in bounds.windows(2) {
         let (a, b) = (seg[0], seg[1]);
         if a < lead {
@@ -409,10 +410,9 @@ pub fn model_start(rows: &[MetroRow]) -> usize {
 /// Runs a model along the rows: [`drive`] from the first row, or, for a model with a slow state,
 /// [`spin_up`] then [`drive`] from [`model_start`] (the rows before it read as measured).
 fn run_model<M: MetroModel>(rows: &[MetroRow], model: &mut M, switches: &Switches, anchors: &[usize]) -> Vec<f64> {
-    if !spin_up(rows, model) {
+    let Some(lead) = spin_up(rows, model) else {
         return drive(rows, model, switches, anchors);
-    }
-    let lead = model_start(rows);
+    };
     let skipped = rows.get(..lead + 1).map_or(0, |r| r.windows(2).filter(|w| w[0].loaded != w[1].loaded).count());
     let shifted: Vec<usize> = anchors.iter().filter(|&&a| a >= lead).map(|a| a - lead).collect();
     let mut out: Vec<f64> = rows[..lead].iter().map(|r| r.tp3_bar).collect();
@@ -1033,6 +1033,18 @@ impl CycleFloor {
     }
 }
 
+/// The first interval k (rows k, k + 1) of rows a..b that reaches time `t`, if any.
+fn interval_at(rows: &[MetroRow], a: usize, b: usize, t: f64) -> Option<usize> {
+    (a..b - 1).find(|&k| rows[k + 1].t_s >= t)
+}
+
+/// `value` at time `t`, linear over the interval from row `k` to row `k + 1` (clamped to it).
+fn interpolate(rows: &[MetroRow], k: usize, t: f64, value: impl Fn(usize) -> f64) -> f64 {
+    let (t0, t1) = (rows[k].t_s, rows[k + 1].t_s);
+    let w = ((t - t0) / (t1 - t0).max(1e-9)).clamp(0.0, 1.0);
+    value(k) * (1.0 - w) + value(k + 1) * w
+}
+
 /// Step of the common time grid of [`cycle_floor`], s.
 const CYCLE_GRID_S: f64 = 10.0;
 /// Two-sided level of the per-time test of [`CycleFloor`].
@@ -1066,10 +1078,8 @@ pub fn cycle_floor(rows: &[MetroRow], measured: &[f64], curve: &[f64]) -> Option
     // The residual of rows a..b at time `ts` after row a (linear between rows).
     let at = |a: usize, b: usize, ts: f64| -> f64 {
         let t = rows[a].t_s + ts;
-        let k = (a..b - 1).find(|&k| rows[k + 1].t_s >= t).unwrap_or(b - 2);
-        let (t0, t1) = (rows[k].t_s, rows[k + 1].t_s);
-        let w = ((t - t0) / (t1 - t0).max(1e-9)).clamp(0.0, 1.0);
-        residual(k) * (1.0 - w) + residual(k + 1) * w
+        let k = interval_at(rows, a, b, t).unwrap_or(b - 2);
+        interpolate(rows, k, t, residual)
     };
     let span = |a: usize, b: usize| rows[b - 1].t_s - rows[a].t_s;
     let loaded_s = cycles.iter().map(|&(l, u, _)| span(l, u)).fold(f64::INFINITY, f64::min);
@@ -1495,10 +1505,7 @@ pub fn one_off_events(rows: &[MetroRow]) -> Vec<OneOffEvent> {
     // Pressure of the decay u..n at `ts` after its first row (linear between rows), if inside.
     let at = |u: usize, n: usize, ts: f64| -> Option<f64> {
         let t = rows[u].t_s + ts;
-        let k = (u..n - 1).find(|&k| rows[k + 1].t_s >= t)?;
-        let (t0, t1) = (rows[k].t_s, rows[k + 1].t_s);
-        let w = ((t - t0) / (t1 - t0).max(1e-9)).clamp(0.0, 1.0);
-        Some(rows[k].tp3_bar * (1.0 - w) + rows[k + 1].tp3_bar * w)
+        Some(interpolate(rows, interval_at(rows, u, n, t)?, t, |i| rows[i].tp3_bar))
     };
     let longest = cycles.iter().map(|&(_, u, n)| rows[n - 1].t_s - rows[u].t_s).fold(0.0, f64::max);
     let windows = ((longest - EVENT_SKIP_S) / EVENT_WINDOW_S).max(0.0) as usize;
@@ -1946,6 +1953,8 @@ pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcom
     let residual_to_noise = (rb, to_noise(chosen.rss));
     let cause =
         crate::audit::cause_name((!chosen.effects.is_empty()).then_some(chosen.name.as_str()), rb <= NOISE_FLOOR_RATIO);
+    // The chosen model against the cycle-to-cycle variation; its spread also sets the record's floor.
+    let floor = cycle_floor(rows, &observed, &chosen.curve);
     Ok(MetroOutcome {
         cause,
         residual_to_noise,
@@ -1953,9 +1962,8 @@ pub fn audit_metro_with(rows: &[MetroRow], validate: bool) -> Result<MetroOutcom
         base_phase_rms: phase_rms(rows, &observed, &base.curve),
         chosen_phase_rms: phase_rms(rows, &observed, &chosen.curve),
         missing: aligned_rate(rows, &observed, &chosen.curve),
-        cycle_floor: cycle_floor(rows, &observed, &chosen.curve),
-        record_floor: cycle_floor(rows, &observed, &chosen.curve)
-            .and_then(|f| record_floor(rows, &events, f.spread_bar)),
+        cycle_floor: floor,
+        record_floor: floor.and_then(|f| record_floor(rows, &events, f.spread_bar)),
         events,
         switch_s: chosen.switches.seconds(rows),
         switch_timing_floor_bar: {
