@@ -287,12 +287,21 @@ impl Session {
         self.owed_fault = None;
     }
 
+    /// Whether the status frame's count `claim` wins against the chain of accepted reports, for
+    /// a frame that continues the count with `by_claim` reports lost and the chain with
+    /// `by_chain`: whichever needs fewer lost reports was right, and a count ahead of the chain
+    /// wins whenever the chain may have gone round ([`Self::chain_wrapped`]).
+    fn count_wins(&self, claim: &CountClaim, by_claim: u8, by_chain: u8, now: u64) -> bool {
+        by_claim < by_chain || (!claim.withdraws && self.chain_wrapped(now))
+    }
+
     /// The status frame's count `claim` was right: the reports it left out, and those accepted
-    /// since on the chain's word, are withdrawn (how many), and the counters follow the count.
-    /// A count ahead of the chain (reports lost by its word) contradicts no report accepted on
-    /// the chain's word since: those are the reports it counted, arriving late (a jitter that
-    /// reorders frames), and are confirmed, not lost.
-    fn accept_claim(&mut self, claim: CountClaim) -> u8 {
+    /// since on the chain's word, are withdrawn, and the counters follow the count. Returns how
+    /// many were withdrawn and how many reports its word says were lost (less those that
+    /// arrived late). A count ahead of the chain (reports lost by its word) contradicts no
+    /// report accepted on the chain's word since: those are the reports it counted, arriving
+    /// late (a jitter that reorders frames), and are confirmed, not lost.
+    fn accept_claim(&mut self, claim: CountClaim) -> (u8, u8) {
         let withdrawn = if claim.withdraws {
             self.withdraw_unconfirmed()
         } else {
@@ -303,7 +312,7 @@ impl Session {
         };
         self.next_fault = claim.count;
         self.status_count = claim.count;
-        withdrawn
+        (withdrawn, claim.lost.saturating_sub(claim.provisional))
     }
 
     /// Takes back the fault reports no status frame has counted: the fault-report state goes
@@ -719,9 +728,8 @@ impl Decoder {
         if let Some(claim) = s.count_claim.take() {
             let by_claim = count.wrapping_sub(claim.count) & 0xF;
             let by_chain = count.wrapping_sub(claim.chain_next) & 0xF;
-            if by_claim < by_chain || (!claim.withdraws && s.chain_wrapped(now)) {
-                rec.withdrawn = s.accept_claim(claim);
-                claim_lost = claim.lost.saturating_sub(claim.provisional);
+            if s.count_wins(&claim, by_claim, by_chain, now) {
+                (rec.withdrawn, claim_lost) = s.accept_claim(claim);
             } else {
                 s.revert_claim(claim);
                 rec.count_corrupt = true;
@@ -891,9 +899,8 @@ impl Decoder {
             let overtaken = !claim.withdraws && counter == claim.count.wrapping_sub(1) & 0xF;
             let by_claim = if overtaken { 0 } else { counter.wrapping_sub(claim.count) & 0xF };
             let by_chain = counter.wrapping_sub(claim.chain_next) & 0xF;
-            if by_claim < by_chain || (!claim.withdraws && s.chain_wrapped(now)) {
-                rec.withdrawn = s.accept_claim(claim);
-                claim_lost = claim.lost.saturating_sub(claim.provisional);
+            if s.count_wins(&claim, by_claim, by_chain, now) {
+                (rec.withdrawn, claim_lost) = s.accept_claim(claim);
             } else {
                 // Judged against the chain; the next status frame decides.
                 s.next_fault = claim.chain_next;
