@@ -156,14 +156,40 @@ struct FaultTrack {
     /// How much later than first estimated the release start was moved by a latency step.
     lag_us: i64,
     /// Release start implied by the last report flagged as late (for a latency step) or as
-    /// early (for a release start set by a delayed first report).
+    /// early (for a release start set by a delayed first report), or accepted as early
+    /// ([`Self::pending`]: for a latency that fell).
     late_start_us: Option<i64>,
+    /// Its time since release placed it more than the field's rounding earlier than the release
+    /// start the reports before it set: sent before it could have been. A genuine report after
+    /// it never carries a time not larger than its own (the sender's reports are at least one
+    /// 0.1 s step apart); one that does, is the next counter and fits the release start of the
+    /// reports before, shows this one was the odd one (a corruption of its time that kept the
+    /// CRC) and replaces it ([`Session::fault_before`]).
+    early: bool,
+    /// Early beyond the tolerance against a release start more than one report set: accepted
+    /// but not current ([`Reception::early`]); one frame does not move the reference. The next
+    /// report early the same way moves the release start (the latency fell); one that
+    /// contradicts it replaces it.
+    pending: bool,
 }
 
 impl FaultTrack {
     /// The first accepted report of a release.
     const fn first(at_us: u64, release: u8, tau: u16, start_us: i64, key: u64, counter: u8, unverified: bool) -> Self {
-        Self { at_us, release, tau, start_us, key, counter, single: true, unverified, lag_us: 0, late_start_us: None }
+        Self {
+            at_us,
+            release,
+            tau,
+            start_us,
+            key,
+            counter,
+            single: true,
+            unverified,
+            lag_us: 0,
+            late_start_us: None,
+            early: false,
+            pending: false,
+        }
     }
 }
 
@@ -196,6 +222,9 @@ struct Session {
     /// Counter of the last accepted fault report.
     last_fault_counter: Option<u8>,
     fault: Option<FaultTrack>,
+    /// The fault track before the last accepted report: what an early report
+    /// ([`FaultTrack::early`]) that the next report contradicts is replaced by.
+    fault_before: Option<FaultTrack>,
     /// Opened as a restart after a silence, not yet confirmed by a second heartbeat.
     tentative: bool,
     /// Heartbeats found overdue (lost) by fault reports since the last accepted status frame.
@@ -320,6 +349,7 @@ impl Session {
     fn withdraw_unconfirmed(&mut self) -> u8 {
         let Some(u) = self.unconfirmed.take() else { return 0 };
         self.fault = u.fault;
+        self.fault_before = None;
         self.last_fault_counter = u.last_fault_counter;
         self.next_fault = u.next_fault;
         self.owed_fault = u.owed_fault;
@@ -384,6 +414,13 @@ pub struct Reception {
     /// CRC missed, and the receiver ignored it (the reports it left out are kept, the loss it
     /// claimed was none).
     pub count_corrupt: bool,
+    /// This fault report's time since release places it earlier than the release start the
+    /// reports before it set, beyond the tolerance: one frame does not move that reference, so
+    /// it is accepted but not current (also [`Self::stale`]) until the next report shows the
+    /// latency fell (early the same way) — or contradicts it (a later report with a time not
+    /// larger, at the right moment), which replaces it: a corruption of the time that kept the
+    /// CRC.
+    pub early: bool,
 }
 
 /// Stream decoder of the monitor's frames.
@@ -440,7 +477,7 @@ impl Decoder {
         match self.session {
             Some(s) => {
                 now_us.saturating_sub(s.at_us) <= HEARTBEAT_TIMEOUT_US
-                    && s.fault.is_some_and(|f| f.at_us == accepted_us)
+                    && s.fault.is_some_and(|f| f.at_us == accepted_us && !f.pending)
                     // Not accepted while a heartbeat was overdue (`Reception::stale`; a heartbeat
                     // received late within the latency step followed is not overdue).
                     && accepted_us.saturating_sub(s.at_us)
@@ -475,6 +512,7 @@ impl Decoder {
             withdrawn: 0,
             restart_jump: 0,
             count_corrupt: false,
+            early: false,
         };
         if let Some(mut s) = self.session {
             let silence = now_us.saturating_sub(s.at_us);
@@ -667,6 +705,7 @@ impl Decoder {
             restart_jump: 0,
             last_fault_counter: None,
             fault: None,
+            fault_before: None,
             tentative,
             overdue_reported: 0,
             lag_us: 0,
@@ -915,6 +954,29 @@ impl Decoder {
         let slack = (TOLERANCE_US + TAU_ROUNDING_US) as i64;
         let start = diff(now, tau_us);
         let mut replaced = false;
+        // The report before was early for its release start (its time since release said it was
+        // sent before it could have been), and this one, the next the sender counted, carries a
+        // time not larger but fits the start the reports before it set: the early one was the
+        // odd one (a corruption of its time that kept the CRC), not this genuine one. Judged
+        // against the reports before it, and it replaces the early one (else the genuine
+        // reports after a corrupted time were flagged as not newer). A genuine report never
+        // carries a time not larger than the one before (at least one 0.1 s step apart).
+        let mut dropped_early = None;
+        if let (Some(f), Some(b)) = (s.fault, s.fault_before) {
+            let since_b = diff(now, 0).saturating_sub(b.start_us);
+            let off_b = since_b.saturating_sub(tau_us as i64);
+            if f.early
+                && f.release == identity.release
+                && b.release == identity.release
+                && tau <= f.tau
+                && tau > b.tau
+                && counter == f.counter.wrapping_add(1) & 0xF
+                && off_b.abs() <= slack + drift(since_b.unsigned_abs()) as i64
+            {
+                s.fault = Some(b);
+                dropped_early = Some(f.pending);
+            }
+        }
         let track = match s.fault {
             Some(f) => {
                 let gap = diff(now, f.at_us);
@@ -1005,6 +1067,21 @@ impl Decoder {
                         }
                         start_us = start;
                     }
+                    // Early beyond the tolerance against a release start more than one report
+                    // set (one resting on a single report may have been set by a delayed
+                    // one): one frame does not move the reference. Accepted but not current;
+                    // the next report early the same way moves the start (the latency fell).
+                    let mut pending = false;
+                    let mut late_start_us = None;
+                    if off < -limit && off >= -(FAULT_EARLY_US as i64) && !saturated && !f.single {
+                        if f.late_start_us.is_some_and(|ls| start.saturating_sub(ls).abs() <= slack) {
+                            lag_us = lag_us.saturating_add(start.saturating_sub(start_us)).max(0);
+                            start_us = start;
+                        } else {
+                            pending = true;
+                            late_start_us = Some(start);
+                        }
+                    }
                     FaultTrack {
                         at_us: now,
                         release: f.release,
@@ -1015,7 +1092,10 @@ impl Decoder {
                         single: false,
                         unverified: false,
                         lag_us,
-                        late_start_us: None,
+                        late_start_us,
+                        early: diff(now, 0).saturating_sub(start_us).saturating_sub(tau_us as i64)
+                            < -(TAU_ROUNDING_US as i64),
+                        pending,
                     }
                 } else {
                     let unverified = self.first_report(&s, identity, start, slack, in_lost)?;
@@ -1092,7 +1172,17 @@ impl Decoder {
         }
         // No heartbeat on time vouches for it: accepted (it may be genuine: a status frame was
         // lost), but not current (a delayed stream, whose heartbeats are flagged, shows here).
-        rec.stale = missed > 0 || track.unverified || s.restart_jump > 0 || provisional;
+        rec.early = track.pending;
+        rec.stale = missed > 0 || track.unverified || s.restart_jump > 0 || provisional || track.pending;
+        // The early report this one replaced: a display that showed it as current stops showing
+        // it (one not shown as current was never held).
+        if dropped_early == Some(false) {
+            rec.withdrawn = rec.withdrawn.saturating_add(1);
+        }
+        if dropped_early.is_some() {
+            unconfirmed.reports = unconfirmed.reports.saturating_sub(1);
+        }
+        s.fault_before = s.fault;
         rec.restart_jump = s.restart_jump;
         if undo_release {
             self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;

@@ -402,6 +402,7 @@ impl<W: Write> CabDisplay<W> {
             withdrawn: 0,
             restart_jump: 0,
             count_corrupt: false,
+            early: false,
         }
     }
 
@@ -511,7 +512,9 @@ impl<W: Write> CabDisplay<W> {
                 // No live heartbeat vouches for it: shown, never as the current report.
                 self.summary.fault_reports += 1;
                 self.summary.stale_reports += 1;
-                let why = if reception.restart_jump > 0 {
+                let why = if reception.early {
+                    "not current: sent earlier than the reports before it place it; the next report decides".to_owned()
+                } else if reception.restart_jump > 0 {
                     format!(
                         "not current: a restart {} releases on, which cannot be told from an old recording",
                         reception.restart_jump

@@ -3,7 +3,10 @@
 //! only the lines the tester disturbed may be flagged, and no genuine report may be shown stale
 //! or withdrawn.
 
-use pbm::can::{Decoder, Report};
+use embedded_can::Frame as _;
+use pbm::can::codec::e2e_crc;
+use pbm::can::layout as l;
+use pbm::can::{CanFrame, Decoder, Report};
 use pbm_io::can_log::read_log;
 
 /// What became of each line (1-based line numbers).
@@ -15,16 +18,29 @@ struct Outcome {
     corrupt_counts: usize,
 }
 
-fn decode(name: &str) -> Outcome {
+/// The frames of a reproducer log: (receive time µs, frame), in log order.
+fn records(name: &str) -> Vec<(u64, CanFrame)> {
     let path = format!("{}/tests/data/can_findings/{name}", env!("CARGO_MANIFEST_DIR"));
     let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    read_log(&bytes[..])
+        .map(|rec| {
+            let rec = rec.unwrap_or_else(|e| panic!("{name}: {e:?}"));
+            (rec.time_us, rec.frame)
+        })
+        .collect()
+}
+
+fn decode(name: &str) -> Outcome {
+    decode_records(&records(name))
+}
+
+fn decode_records(frames: &[(u64, CanFrame)]) -> Outcome {
     let mut d = Decoder::new();
     let mut o = Outcome::default();
     let mut accepted = Vec::new();
-    for (i, rec) in read_log(&bytes[..]).enumerate() {
-        let rec = rec.unwrap_or_else(|e| panic!("{name}: {e:?}"));
+    for (i, (time_us, frame)) in frames.iter().enumerate() {
         let line = i + 1;
-        let r = d.receive(rec.time_us, &rec.frame);
+        let r = d.receive(*time_us, frame);
         for _ in 0..r.withdrawn {
             if let Some(l) = accepted.pop() {
                 o.withdrawn.push(l);
@@ -107,4 +123,40 @@ fn f2_a_lag_4096_replay_of_another_release_alone_is_flagged() {
     let o = decode("F2_lag4096_status_replay_other_release_locks_out.log");
     assert_eq!(o.flagged, vec![15], "{o:?}");
     assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+}
+
+/// F8: a CRC-keeping corruption of one fault report (line 162) moved its time since release
+/// 0.2 s ahead (26.5 → 26.7 s): it was shown current, and the next two genuine reports
+/// (26.6 s, 26.7 s) were flagged as not newer. One frame does not move the reference now: the
+/// early one is accepted but not current, the genuine report after it (the next counter, at
+/// the moment the reports before set) replaces it, and nothing is flagged or lost.
+#[test]
+fn f8_a_corrupted_report_time_gets_no_genuine_report_flagged() {
+    let o = decode("F8_crc_passing_corruption_of_report_time_rejects_following_genuine.log");
+    assert!(o.flagged.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+    // The corrupted one: never shown as current; no genuine report stale.
+    assert_eq!(o.stale, vec![162], "{o:?}");
+}
+
+/// F8, one step (the time moved 0.1 s ahead, received 40 ms late so that it stays within the
+/// tolerance): the corrupted report is shown current, and withdrawn when the genuine report
+/// after it, with a time not larger, comes at the right moment; nothing is flagged.
+#[test]
+fn f8_a_report_time_one_step_ahead_is_withdrawn_by_the_genuine_report_after_it() {
+    let mut frames = records("F8_crc_passing_corruption_of_report_time_rejects_following_genuine.log");
+    let Some((t, f)) = frames.get_mut(161) else { panic!("line 162 missing") };
+    let mut payload = [0u8; 8];
+    payload.copy_from_slice(f.data());
+    let mut bits = u64::from_le_bytes(payload);
+    assert_eq!(l::TIME_SINCE_RELEASE.get(bits), 267, "the corrupted line");
+    l::TIME_SINCE_RELEASE.put(&mut bits, 266);
+    let mut payload = bits.to_le_bytes();
+    // Locomotive 7, release 5 (the stream's), as the sender's CRC covers them.
+    let identity = pbm::can::codec::Identity { locomotive: 7, release: 5 };
+    payload[0] = e2e_crc(l::FAULT_REPORT.data_id, Some(identity), &payload);
+    *f = CanFrame::from_extended(l::FAULT_REPORT.id, payload);
+    *t += 40_000;
+    let o = decode_records(&frames);
+    assert!(o.flagged.is_empty() && o.stale.is_empty(), "{o:?}");
+    assert_eq!(o.withdrawn, vec![162], "{o:?}");
 }
