@@ -125,6 +125,10 @@ const COUNTER_MOD: u16 = 4096;
 /// frames show the new phase (the first of them is flagged: one delayed frame looks the same).
 /// A uniform delay beyond it stays flagged and the session times out.
 pub const MAX_LATENCY_STEP_US: u64 = 250_000;
+/// How many unattributed fault reports ([`Reception::unattributed`]) the receiver holds until a
+/// heartbeat attributes them: the sender sends at most 11 in a heartbeat period. Beyond it they
+/// are flagged.
+const UNATTRIBUTED_MAX: usize = 12;
 
 /// Clock drift allowed between sender and receiver over `dt`: 200 ppm (crystal oscillators
 /// stay within 100 ppm).
@@ -421,6 +425,25 @@ pub struct Reception {
     /// larger, at the right moment), which replaces it: a corruption of the time that kept the
     /// CRC.
     pub early: bool,
+    /// This fault report came after a silence, before any heartbeat, and its CRC fits the lost
+    /// session's locomotive only with a release number further on (the sender ran on while this
+    /// receiver heard nothing): no live heartbeat attributes it yet. Accepted but not current
+    /// (also [`Self::stale`]); the next accepted heartbeat decides
+    /// ([`Self::unattributed_fitting`], [`Self::unattributed_rejected`]).
+    pub unattributed: bool,
+    /// Unattributed fault reports (above) that this accepted status frame attributes: its
+    /// locomotive and its release (or the one before), a counter its `FaultReportCount` has
+    /// counted, a release that began before it.
+    pub unattributed_fitting: u8,
+    /// Unattributed fault reports that this accepted status frame does not attribute: not the
+    /// monitor's (a CRC that passed for a release the sender never reached); a display stops
+    /// showing them and counts them as flagged.
+    pub unattributed_rejected: u8,
+    /// The session follows a stream delayed beyond [`MAX_LATENCY_STEP_US`] against its first
+    /// heartbeat (the heartbeats after it came later than that one's clock, which no genuine or
+    /// replayed frame does): this fault report is late by that much, so not current (also
+    /// [`Self::stale`]).
+    pub delayed_stream: bool,
 }
 
 /// Stream decoder of the monitor's frames.
@@ -432,6 +455,10 @@ pub struct Decoder {
     /// Newest release number seen per locomotive (bit `i` of `seen`: locomotive `i` seen).
     newest_release: [u8; 64],
     seen: u64,
+    /// Fault reports heard after a silence, before the heartbeat that can attribute them
+    /// ([`Reception::unattributed`]): receive time and payload bits.
+    unattributed: [(u64, u64); UNATTRIBUTED_MAX],
+    unattributed_len: u8,
 }
 
 impl Default for Decoder {
@@ -457,7 +484,14 @@ fn release_not_before(b: u8, a: u8) -> bool {
 impl Decoder {
     /// A decoder that has seen nothing yet.
     pub const fn new() -> Self {
-        Self { session: None, lost: None, newest_release: [0; 64], seen: 0 }
+        Self {
+            session: None,
+            lost: None,
+            newest_release: [0; 64],
+            seen: 0,
+            unattributed: [(0, 0); UNATTRIBUTED_MAX],
+            unattributed_len: 0,
+        }
     }
 
     /// Forgets everything (for example after a bus-off of the receiver).
@@ -478,6 +512,8 @@ impl Decoder {
             Some(s) => {
                 now_us.saturating_sub(s.at_us) <= HEARTBEAT_TIMEOUT_US
                     && s.fault.is_some_and(|f| f.at_us == accepted_us && !f.pending)
+                    // Not a session that follows a stream delayed beyond the latency step.
+                    && s.lag_us <= MAX_LATENCY_STEP_US as i64
                     // Not accepted while a heartbeat was overdue (`Reception::stale`; a heartbeat
                     // received late within the latency step followed is not overdue).
                     && accepted_us.saturating_sub(s.at_us)
@@ -513,6 +549,10 @@ impl Decoder {
             restart_jump: 0,
             count_corrupt: false,
             early: false,
+            unattributed: false,
+            unattributed_fitting: 0,
+            unattributed_rejected: 0,
+            delayed_stream: false,
         };
         if let Some(mut s) = self.session {
             let silence = now_us.saturating_sub(s.at_us);
@@ -533,7 +573,13 @@ impl Decoder {
         }
         rec.result = match frame_payload(frame) {
             Err(e) => Err(e),
-            Ok((MessageKind::Status, bits)) => self.status(now_us, bits, &mut rec),
+            Ok((MessageKind::Status, bits)) => {
+                let r = self.status(now_us, bits, &mut rec);
+                if r.is_ok() {
+                    self.attribute_held(now_us, bits, &mut rec);
+                }
+                r
+            }
             Ok((MessageKind::Fault, bits)) => self.fault(now_us, bits, &mut rec),
         };
         rec
@@ -588,6 +634,16 @@ impl Decoder {
                             o.release_since_us = s.release_since_us;
                             o.fault = s.fault;
                             o.last_fault_counter = s.last_fault_counter;
+                            // Later than the opener's clock: no genuine or replayed frame comes
+                            // before it is due, so the stream after the opener is delayed by
+                            // that much (or the opener was forged). Up to the latency step
+                            // the receiver follows it is one; beyond it the session follows a
+                            // delayed stream, whose fault reports are not current (else a
+                            // uniform delay of 0.26–2.9 s beginning right after a session's
+                            // first heartbeat was followed and its reports shown current).
+                            if let FrameError::Untimely { off_ms } = e {
+                                o.lag_us = i64::from(off_ms.max(0)) * 1000;
+                            }
                         }
                     }
                     // A sender that restarted before its heartbeat timed out (a power cycle
@@ -910,6 +966,8 @@ impl Decoder {
                     next
                 } else if let Some(p) = prev.filter(|p| check_crc(MessageKind::Fault, bits, *p).is_ok()) {
                     p
+                } else if in_lost {
+                    return self.hold_unattributed(&s, now, bits, e, rec);
                 } else {
                     return Err(e);
                 }
@@ -1173,7 +1231,9 @@ impl Decoder {
         // No heartbeat on time vouches for it: accepted (it may be genuine: a status frame was
         // lost), but not current (a delayed stream, whose heartbeats are flagged, shows here).
         rec.early = track.pending;
-        rec.stale = missed > 0 || track.unverified || s.restart_jump > 0 || provisional || track.pending;
+        rec.delayed_stream = s.lag_us > MAX_LATENCY_STEP_US as i64;
+        rec.stale =
+            missed > 0 || track.unverified || s.restart_jump > 0 || provisional || track.pending || rec.delayed_stream;
         // The early report this one replaced: a display that showed it as current stops showing
         // it (one not shown as current was never held).
         if dropped_early == Some(false) {
@@ -1198,6 +1258,66 @@ impl Decoder {
         }
         rec.identity = Some(identity);
         Ok(report)
+    }
+
+    /// A fault report after a silence whose CRC fails for the lost session's release (and the
+    /// next): the sender may have run on while this receiver heard nothing, so a release further
+    /// on — no more than one a second of silence allows — is tried. One that fits is held as
+    /// unattributed (accepted, not current) until the next heartbeat decides
+    /// ([`Self::attribute_held`]); none fitting, or the hold full: flagged with `e`. (It was
+    /// flagged `wrong_crc` always: no live heartbeat attributed it.)
+    fn hold_unattributed(
+        &mut self,
+        lost: &Session,
+        now: u64,
+        bits: u64,
+        e: FrameError,
+        rec: &mut Reception,
+    ) -> Result<Report, FrameError> {
+        let silence = now.saturating_sub(lost.at_us);
+        let possible = (1 + silence / MIN_RELEASE_US).min(63) as u8;
+        let found = (2..=possible)
+            .map(|on| Identity { release: lost.identity.release.wrapping_add(on) & 0x3F, ..lost.identity })
+            .find(|id| check_crc(MessageKind::Fault, bits, *id).is_ok());
+        let (Some(identity), Some(slot)) = (found, self.unattributed.get_mut(usize::from(self.unattributed_len)))
+        else {
+            return Err(e);
+        };
+        let report = decode_signals(MessageKind::Fault, bits)?;
+        *slot = (now, bits);
+        self.unattributed_len += 1;
+        rec.unattributed = true;
+        rec.stale = true;
+        rec.identity = Some(identity);
+        Ok(report)
+    }
+
+    /// The heartbeat just accepted (`bits`, at `now`) decides the unattributed fault reports
+    /// held: one fits when its CRC passes for the heartbeat's locomotive and release (or the
+    /// release before: a release command between the two), its counter is one the heartbeat's
+    /// `FaultReportCount` counted (within the reports the rate bound allows since it came),
+    /// and its release began before the heartbeat. They are not fed into the fault-report
+    /// chain (they came before the frame that attributes them); a display shows the ones that
+    /// fit as past reports, and drops the others.
+    fn attribute_held(&mut self, now: u64, bits: u64, rec: &mut Reception) {
+        let n = usize::from(core::mem::take(&mut self.unattributed_len));
+        let link = status_link(bits);
+        let id = link.identity.masked();
+        let before = Identity { release: id.release.wrapping_sub(1) & 0x3F, ..id };
+        let count = link.fault_count & 0xF;
+        for &(at, fb) in self.unattributed.iter().take(n) {
+            let crc_fits =
+                check_crc(MessageKind::Fault, fb, id).is_ok() || check_crc(MessageKind::Fault, fb, before).is_ok();
+            let counter = l::FAULT_COUNTER.get(fb) as u8;
+            let counted = u64::from(count.wrapping_sub(1).wrapping_sub(counter) & 0xF) <= reports_possible(at, now);
+            let tau_us = l::TIME_SINCE_RELEASE.get(fb) * TAU_STEP_US;
+            let began_before = at <= now.saturating_add(TOLERANCE_US) && tau_us.saturating_add(now) >= at;
+            if crc_fits && counted && began_before {
+                rec.unattributed_fitting = rec.unattributed_fitting.saturating_add(1);
+            } else {
+                rec.unattributed_rejected = rec.unattributed_rejected.saturating_add(1);
+            }
+        }
     }
 
     /// Updates the fault track of the session a flagged report was judged against (the

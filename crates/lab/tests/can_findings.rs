@@ -13,9 +13,14 @@ use pbm_io::can_log::read_log;
 #[derive(Debug, Default)]
 struct Outcome {
     flagged: Vec<usize>,
+    /// Fault reports accepted (shown, current or stale).
+    reports: Vec<usize>,
     stale: Vec<usize>,
     withdrawn: Vec<usize>,
     corrupt_counts: usize,
+    /// Unattributed reports the next heartbeat attributed, and dropped.
+    unattributed_fitting: usize,
+    unattributed_rejected: usize,
 }
 
 /// The frames of a reproducer log: (receive time µs, frame), in log order.
@@ -47,10 +52,13 @@ fn decode_records(frames: &[(u64, CanFrame)]) -> Outcome {
             }
         }
         o.corrupt_counts += usize::from(r.count_corrupt);
+        o.unattributed_fitting += usize::from(r.unattributed_fitting);
+        o.unattributed_rejected += usize::from(r.unattributed_rejected);
         match r.result {
             Err(_) => o.flagged.push(line),
             Ok(Report::Fault(_)) => {
                 accepted.push(line);
+                o.reports.push(line);
                 if r.stale {
                     o.stale.push(line);
                 }
@@ -159,4 +167,52 @@ fn f8_a_report_time_one_step_ahead_is_withdrawn_by_the_genuine_report_after_it()
     let o = decode_records(&frames);
     assert!(o.flagged.is_empty() && o.stale.is_empty(), "{o:?}");
     assert_eq!(o.withdrawn, vec![162], "{o:?}");
+}
+
+/// A receiver deaf for 3767 s while the monitor went from release 3 to 32 (the third tester's
+/// `d_outage` kind, its seed 700): the fault report it hears first after the silence
+/// comes before the first heartbeat (line 147) and was flagged `wrong_crc` (no live heartbeat attributed
+/// it). Now it is held as unattributed (accepted, shown stale, never current), and the
+/// heartbeat after it attributes it: nothing is flagged.
+#[test]
+fn a_report_between_a_receiver_outage_and_the_next_heartbeat_is_held_not_flagged() {
+    let o = decode("outage_report_before_the_first_heartbeat_after_it.log");
+    assert!(o.flagged.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+    assert_eq!(o.stale, vec![147], "{o:?}");
+    assert_eq!((o.unattributed_fitting, o.unattributed_rejected), (1, 0), "{o:?}");
+}
+
+/// The same with line 147 forged: a report whose CRC fits the release the monitor reached (32)
+/// but whose counter (3) the heartbeat after it never counted (its count says 11 was the last):
+/// held as unattributed (never current), then dropped by that heartbeat.
+#[test]
+fn an_unattributed_report_the_next_heartbeat_does_not_count_is_dropped() {
+    let mut frames = records("outage_report_before_the_first_heartbeat_after_it.log");
+    let Some((_, f)) = frames.get_mut(146) else { panic!("line 147 missing") };
+    let mut payload = [0u8; 8];
+    payload.copy_from_slice(f.data());
+    let mut bits = u64::from_le_bytes(payload);
+    assert_eq!(l::FAULT_COUNTER.get(bits), 11, "the genuine line");
+    l::FAULT_COUNTER.put(&mut bits, 3);
+    let mut payload = bits.to_le_bytes();
+    let identity = pbm::can::codec::Identity { locomotive: 7, release: 32 };
+    payload[0] = e2e_crc(l::FAULT_REPORT.data_id, Some(identity), &payload);
+    *f = CanFrame::from_extended(l::FAULT_REPORT.id, payload);
+    let o = decode_records(&frames);
+    assert!(o.flagged.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+    assert_eq!(o.stale, vec![147], "{o:?}");
+    assert_eq!((o.unattributed_fitting, o.unattributed_rejected), (0, 1), "{o:?}");
+}
+
+/// F1c: the first heartbeat on time, every later frame 2 s late (a gateway that starts
+/// queueing right after start-up). The later heartbeats replace the tentative opener (the
+/// receiver cannot tell which was off), but they came later than the opener's clock, which no
+/// genuine or replayed frame does: the session follows a stream delayed 2 s, beyond the
+/// latency step, and none of its fault reports is shown as current (release 3's were, 460 of
+/// 494 on the full demo log).
+#[test]
+fn f1c_a_stream_delayed_after_its_first_heartbeat_shows_no_report_current() {
+    let o = decode("F1c_uniform_2s_delay_after_first_heartbeat_followed_reports_current.log");
+    assert!(o.reports.len() >= 10, "{o:?}");
+    assert_eq!(o.stale, o.reports, "{o:?}");
 }
