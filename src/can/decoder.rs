@@ -258,6 +258,11 @@ struct Session {
     /// same start in the next one, which is then accepted (else every report of the release's
     /// first second was flagged, up to 11).
     first_late: Option<(u8, i64)>,
+    /// While the session is tentative: the last heartbeat of another locomotive, flagged
+    /// (`foreign_sender`): locomotive, counter, receive time. The next one of that locomotive
+    /// that continues it in time outvotes the one frame the session rests on (a corruption of
+    /// its locomotive that kept the CRC, or a stray frame), and replaces the session.
+    rival: Option<(u8, u16, u64)>,
 }
 
 /// A status frame's `FaultReportCount` that contradicts the chain of the accepted reports'
@@ -602,7 +607,28 @@ impl Decoder {
             }
             Some(s) => {
                 if loco != s.identity.locomotive {
-                    return Err(FrameError::ForeignSender { locomotive: loco });
+                    // A tentative session rests on one frame: two heartbeats of another
+                    // locomotive, one continuing the other in time (counter and receive time
+                    // advanced alike), outvote it (else a CRC-keeping corruption of the
+                    // opener's locomotive got every genuine frame flagged until a silence).
+                    let outvoted = s.tentative
+                        && s.rival.is_some_and(|(l, c, at)| {
+                            let dp = link.counter.wrapping_sub(c) % COUNTER_MOD;
+                            let span = u64::from(dp) * STATUS_PERIOD_US;
+                            l == loco
+                                && (1..COUNTER_MOD / 2).contains(&dp)
+                                && diff(now, at).saturating_sub(span as i64).unsigned_abs()
+                                    <= TOLERANCE_US + drift(span)
+                        });
+                    if !outvoted {
+                        if let Some(o) = self.session.as_mut().filter(|o| o.tentative) {
+                            o.rival = Some((loco, link.counter, now));
+                        }
+                        return Err(FrameError::ForeignSender { locomotive: loco });
+                    }
+                    rec.superseded = true;
+                    self.open(now, &link, true, rec);
+                    return Ok(report);
                 }
                 match continuation(&s, now, &link) {
                     Ok(c) => self.accept_status(s, now, &link, c, rec),
@@ -771,6 +797,7 @@ impl Decoder {
             unconfirmed: None,
             count_claim: None,
             first_late: None,
+            rival: None,
         });
         // A tentative session rests on one frame, which may be a replay: what it says of the
         // locomotive's newest release is believed only once a second heartbeat confirms it

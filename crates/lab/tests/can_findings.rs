@@ -216,3 +216,15 @@ fn f1c_a_stream_delayed_after_its_first_heartbeat_shows_no_report_current() {
     assert!(o.reports.len() >= 10, "{o:?}");
     assert_eq!(o.stale, o.reports, "{o:?}");
 }
+
+/// F6 family (the third tester's `a_corrupt_first` kind, its seed 716, first 60 lines): the
+/// session's opening heartbeat (line 1) carries a CRC-keeping corruption of its locomotive
+/// (7 → 3). Every genuine heartbeat was flagged `foreign_sender` until the tentative session
+/// timed out (3 s). Now two genuine heartbeats, the second continuing the first in time,
+/// outvote the one frame: only the first of them (line 2) is flagged.
+#[test]
+fn a_corrupted_opener_locomotive_is_outvoted_by_two_genuine_heartbeats() {
+    let o = decode("corrupted_opener_locomotive.log");
+    assert_eq!(o.flagged, vec![2], "{o:?}");
+    assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+}
