@@ -660,15 +660,23 @@ impl Decoder {
                             o.release_since_us = s.release_since_us;
                             o.fault = s.fault;
                             o.last_fault_counter = s.last_fault_counter;
-                            // Later than the opener's clock: no genuine or replayed frame comes
-                            // before it is due, so the stream after the opener is delayed by
-                            // that much (or the opener was forged). Up to the latency step
-                            // the receiver follows it is one; beyond it the session follows a
-                            // delayed stream, whose fault reports are not current (else a
-                            // uniform delay of 0.26–2.9 s beginning right after a session's
+                            // Later than the opener's clock by a fraction of a period: no genuine
+                            // or replayed frame comes before it is due, so the stream after the
+                            // opener is delayed by that much (or the opener was forged). Up to
+                            // the latency step the receiver follows it is one; beyond it the
+                            // session follows a delayed stream, whose fault reports are not
+                            // current (else a uniform delay beginning right after a session's
                             // first heartbeat was followed and its reports shown current).
+                            // Later by whole periods (within the step) is what a CRC-keeping
+                            // corruption of the opener's counter looks like too: not marked
+                            // (else every genuine report of such a session was shown stale).
                             if let FrameError::Untimely { off_ms } = e {
-                                o.lag_us = i64::from(off_ms.max(0)) * 1000;
+                                let late = i64::from(off_ms.max(0)) * 1000;
+                                let frac = late % STATUS_PERIOD_US as i64;
+                                if frac > MAX_LATENCY_STEP_US as i64 && frac < (STATUS_PERIOD_US - TOLERANCE_US) as i64
+                                {
+                                    o.lag_us = late;
+                                }
                             }
                         }
                     }
