@@ -432,7 +432,8 @@ pub struct Reception {
     pub early: bool,
     /// This fault report came after a silence, before any heartbeat, and its CRC fits the lost
     /// session's locomotive only with a release number further on (the sender ran on while this
-    /// receiver heard nothing): no live heartbeat attributes it yet. Accepted but not current
+    /// receiver heard nothing), or in a session resting on one frame (tentative: an old frame
+    /// heard first) only with another release: no live heartbeat attributes it yet. Accepted but not current
     /// (also [`Self::stale`]); the next accepted heartbeat decides
     /// ([`Self::unattributed_fitting`], [`Self::unattributed_rejected`]).
     pub unattributed: bool,
@@ -1001,7 +1002,8 @@ impl Decoder {
                     next
                 } else if let Some(p) = prev.filter(|p| check_crc(MessageKind::Fault, bits, *p).is_ok()) {
                     p
-                } else if in_lost {
+                } else if in_lost || s.tentative {
+                    // (A tentative session rests on one frame, which may be old: F3.)
                     return self.hold_unattributed(&s, now, bits, e, rec);
                 } else {
                     return Err(e);
@@ -1297,7 +1299,9 @@ impl Decoder {
 
     /// A fault report after a silence whose CRC fails for the lost session's release (and the
     /// next): the sender may have run on while this receiver heard nothing, so a release further
-    /// on — no more than one a second of silence allows — is tried. One that fits is held as
+    /// on — no more than one a second of silence allows — is tried; in a tentative session
+    /// (`lost` is then the session), whose one frame may be an old replay, every release of its
+    /// locomotive. One that fits is held as
     /// unattributed (accepted, not current) until the next heartbeat decides
     /// ([`Self::attribute_held`]); none fitting, or the hold full: flagged with `e`. (It was
     /// flagged `wrong_crc` always: no live heartbeat attributed it.)
@@ -1310,8 +1314,9 @@ impl Decoder {
         rec: &mut Reception,
     ) -> Result<Report, FrameError> {
         let silence = now.saturating_sub(lost.at_us);
-        let possible = (1 + silence / MIN_RELEASE_US).min(63) as u8;
-        let found = (2..=possible)
+        // A tentative session's one frame may be a replay of any age: every release.
+        let possible = if lost.tentative { 63 } else { (1 + silence / MIN_RELEASE_US).min(63) as u8 };
+        let found = (1..=possible)
             .map(|on| Identity { release: lost.identity.release.wrapping_add(on) & 0x3F, ..lost.identity })
             .find(|id| check_crc(MessageKind::Fault, bits, *id).is_ok());
         let (Some(identity), Some(slot)) = (found, self.unattributed.get_mut(usize::from(self.unattributed_len)))

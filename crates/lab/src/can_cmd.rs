@@ -537,7 +537,7 @@ impl<W: Write> CabDisplay<W> {
                 self.summary.fault_reports += 1;
                 self.summary.stale_reports += 1;
                 let why = if reception.unattributed {
-                    "stale: heard after a silence, before a heartbeat attributes it; the next heartbeat decides"
+                    "stale: no heartbeat attributes it yet (after a silence, or a session resting on one frame); the next heartbeat decides"
                         .to_owned()
                 } else if reception.delayed_stream {
                     "stale: the stream is delayed beyond the latency step against its first heartbeat".to_owned()

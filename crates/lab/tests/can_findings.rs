@@ -233,3 +233,18 @@ fn a_corrupted_opener_locomotive_is_outvoted_by_two_genuine_heartbeats() {
     assert_eq!(o.flagged, vec![2], "{o:?}");
     assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
 }
+
+/// F3: a display whose first frame is an old heartbeat (release 3, line 1) of the live
+/// monitor (release 4): the live frames after it were all flagged, then (after the fix of the
+/// third round) the first live heartbeat and the reports of the first second. Now the first
+/// live heartbeat (line 2, 0.3 s after the old one) alone is flagged; the reports before the
+/// next heartbeat, whose CRC fits only another release, are held as unattributed (shown stale,
+/// never current) and that heartbeat, which replaces the old opener, attributes them.
+#[test]
+fn f3_an_old_heartbeat_heard_first_gets_one_live_frame_flagged() {
+    let o = decode("F3_latejoin_old_status_locks_out.log");
+    assert_eq!(o.flagged, vec![2], "{o:?}");
+    assert_eq!(o.stale, vec![3, 4, 5], "{o:?}");
+    assert_eq!((o.unattributed_fitting, o.unattributed_rejected), (3, 0), "{o:?}");
+    assert!(o.withdrawn.is_empty(), "{o:?}");
+}
