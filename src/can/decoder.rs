@@ -87,7 +87,18 @@
 //! catches a fault report of another locomotive whose CRC happens to pass (one of the CRC's 15
 //! identity collisions, or a corruption that kept the CRC) when its time since release fits.
 //!
-//! Before any heartbeat a fault report cannot be attributed: [`FrameError::NoHeartbeat`]. One
+//! A report whose time places it earlier than the release start the reports before it set,
+//! beyond the tolerance, does not move that start: accepted but not current
+//! ([`Reception::early`]); the genuine report after it, with a time not larger, replaces it.
+//! A session whose heartbeats came later than its first one's clock by a fraction of a period
+//! beyond [`MAX_LATENCY_STEP_US`] follows a delayed stream: its reports are not current
+//! ([`Reception::delayed_stream`]). Two heartbeats of another locomotive, one continuing the
+//! other, outvote a session that rests on one frame.
+//!
+//! Before any heartbeat a fault report cannot be attributed: [`FrameError::NoHeartbeat`]. After
+//! a silence (or in a session resting on one frame) a report whose CRC fits the locomotive only
+//! at another release is held as unattributed, not current, until the next accepted heartbeat
+//! attributes or drops it ([`Reception::unattributed`]). One
 //! that comes while a heartbeat is overdue, or after the heartbeat timed out (judged against
 //! the lost session), is accepted but stale ([`Reception::stale`]): not current.
 
