@@ -87,7 +87,18 @@
 //! catches a fault report of another locomotive whose CRC happens to pass (one of the CRC's 15
 //! identity collisions, or a corruption that kept the CRC) when its time since release fits.
 //!
-//! Before any heartbeat a fault report cannot be attributed: [`FrameError::NoHeartbeat`]. One
+//! A report whose time places it earlier than the release start the reports before it set,
+//! beyond the tolerance, does not move that start: accepted but not current
+//! ([`Reception::early`]); the genuine report after it, with a time not larger, replaces it.
+//! A session whose heartbeats came later than its first one's clock by a fraction of a period
+//! beyond [`MAX_LATENCY_STEP_US`] follows a delayed stream: its reports are not current
+//! ([`Reception::delayed_stream`]). Two heartbeats of another locomotive, one continuing the
+//! other, outvote a session that rests on one frame.
+//!
+//! Before any heartbeat a fault report cannot be attributed: [`FrameError::NoHeartbeat`]. After
+//! a silence (or in a session resting on one frame) a report whose CRC fits the locomotive only
+//! at another release is held as unattributed, not current, until the next accepted heartbeat
+//! attributes or drops it ([`Reception::unattributed`]). One
 //! that comes while a heartbeat is overdue, or after the heartbeat timed out (judged against
 //! the lost session), is accepted but stale ([`Reception::stale`]): not current.
 
@@ -125,6 +136,10 @@ const COUNTER_MOD: u16 = 4096;
 /// frames show the new phase (the first of them is flagged: one delayed frame looks the same).
 /// A uniform delay beyond it stays flagged and the session times out.
 pub const MAX_LATENCY_STEP_US: u64 = 250_000;
+/// How many unattributed fault reports ([`Reception::unattributed`]) the receiver holds until a
+/// heartbeat attributes them: the sender sends at most 11 in a heartbeat period. Beyond it they
+/// are flagged.
+const UNATTRIBUTED_MAX: usize = 12;
 
 /// Clock drift allowed between sender and receiver over `dt`: 200 ppm (crystal oscillators
 /// stay within 100 ppm).
@@ -156,14 +171,40 @@ struct FaultTrack {
     /// How much later than first estimated the release start was moved by a latency step.
     lag_us: i64,
     /// Release start implied by the last report flagged as late (for a latency step) or as
-    /// early (for a release start set by a delayed first report).
+    /// early (for a release start set by a delayed first report), or accepted as early
+    /// ([`Self::pending`]: for a latency that fell).
     late_start_us: Option<i64>,
+    /// Its time since release placed it more than the field's rounding earlier than the release
+    /// start the reports before it set: sent before it could have been. A genuine report after
+    /// it never carries a time not larger than its own (the sender's reports are at least one
+    /// 0.1 s step apart); one that does, is the next counter and fits the release start of the
+    /// reports before, shows this one was the odd one (a corruption of its time that kept the
+    /// CRC) and replaces it ([`Session::fault_before`]).
+    early: bool,
+    /// Early beyond the tolerance against a release start more than one report set: accepted
+    /// but not current ([`Reception::early`]); one frame does not move the reference. The next
+    /// report early the same way moves the release start (the latency fell); one that
+    /// contradicts it replaces it.
+    pending: bool,
 }
 
 impl FaultTrack {
     /// The first accepted report of a release.
     const fn first(at_us: u64, release: u8, tau: u16, start_us: i64, key: u64, counter: u8, unverified: bool) -> Self {
-        Self { at_us, release, tau, start_us, key, counter, single: true, unverified, lag_us: 0, late_start_us: None }
+        Self {
+            at_us,
+            release,
+            tau,
+            start_us,
+            key,
+            counter,
+            single: true,
+            unverified,
+            lag_us: 0,
+            late_start_us: None,
+            early: false,
+            pending: false,
+        }
     }
 }
 
@@ -196,6 +237,9 @@ struct Session {
     /// Counter of the last accepted fault report.
     last_fault_counter: Option<u8>,
     fault: Option<FaultTrack>,
+    /// The fault track before the last accepted report: what an early report
+    /// ([`FaultTrack::early`]) that the next report contradicts is replaced by.
+    fault_before: Option<FaultTrack>,
     /// Opened as a restart after a silence, not yet confirmed by a second heartbeat.
     tentative: bool,
     /// Heartbeats found overdue (lost) by fault reports since the last accepted status frame.
@@ -225,6 +269,11 @@ struct Session {
     /// same start in the next one, which is then accepted (else every report of the release's
     /// first second was flagged, up to 11).
     first_late: Option<(u8, i64)>,
+    /// While the session is tentative: the last heartbeat of another locomotive, flagged
+    /// (`foreign_sender`): locomotive, counter, receive time. The next one of that locomotive
+    /// that continues it in time outvotes the one frame the session rests on (a corruption of
+    /// its locomotive that kept the CRC, or a stray frame), and replaces the session.
+    rival: Option<(u8, u16, u64)>,
 }
 
 /// A status frame's `FaultReportCount` that contradicts the chain of the accepted reports'
@@ -320,6 +369,7 @@ impl Session {
     fn withdraw_unconfirmed(&mut self) -> u8 {
         let Some(u) = self.unconfirmed.take() else { return 0 };
         self.fault = u.fault;
+        self.fault_before = None;
         self.last_fault_counter = u.last_fault_counter;
         self.next_fault = u.next_fault;
         self.owed_fault = u.owed_fault;
@@ -384,6 +434,33 @@ pub struct Reception {
     /// CRC missed, and the receiver ignored it (the reports it left out are kept, the loss it
     /// claimed was none).
     pub count_corrupt: bool,
+    /// This fault report's time since release places it earlier than the release start the
+    /// reports before it set, beyond the tolerance: one frame does not move that reference, so
+    /// it is accepted but not current (also [`Self::stale`]) until the next report shows the
+    /// latency fell (early the same way) — or contradicts it (a later report with a time not
+    /// larger, at the right moment), which replaces it: a corruption of the time that kept the
+    /// CRC.
+    pub early: bool,
+    /// This fault report came after a silence, before any heartbeat, and its CRC fits the lost
+    /// session's locomotive only with a release number further on (the sender ran on while this
+    /// receiver heard nothing), or in a session resting on one frame (tentative: an old frame
+    /// heard first) only with another release: no live heartbeat attributes it yet. Accepted but not current
+    /// (also [`Self::stale`]); the next accepted heartbeat decides
+    /// ([`Self::unattributed_fitting`], [`Self::unattributed_rejected`]).
+    pub unattributed: bool,
+    /// Unattributed fault reports (above) that this accepted status frame attributes: its
+    /// locomotive and its release (or the one before), a counter its `FaultReportCount` has
+    /// counted, a release that began before it.
+    pub unattributed_fitting: u8,
+    /// Unattributed fault reports that this accepted status frame does not attribute: not the
+    /// monitor's (a CRC that passed for a release the sender never reached); a display stops
+    /// showing them and counts them as flagged.
+    pub unattributed_rejected: u8,
+    /// The session follows a stream delayed beyond [`MAX_LATENCY_STEP_US`] against its first
+    /// heartbeat (the heartbeats after it came later than that one's clock, which no genuine or
+    /// replayed frame does): this fault report is late by that much, so not current (also
+    /// [`Self::stale`]).
+    pub delayed_stream: bool,
 }
 
 /// Stream decoder of the monitor's frames.
@@ -395,6 +472,10 @@ pub struct Decoder {
     /// Newest release number seen per locomotive (bit `i` of `seen`: locomotive `i` seen).
     newest_release: [u8; 64],
     seen: u64,
+    /// Fault reports heard after a silence, before the heartbeat that can attribute them
+    /// ([`Reception::unattributed`]): receive time and payload bits.
+    unattributed: [(u64, u64); UNATTRIBUTED_MAX],
+    unattributed_len: u8,
 }
 
 impl Default for Decoder {
@@ -420,7 +501,14 @@ fn release_not_before(b: u8, a: u8) -> bool {
 impl Decoder {
     /// A decoder that has seen nothing yet.
     pub const fn new() -> Self {
-        Self { session: None, lost: None, newest_release: [0; 64], seen: 0 }
+        Self {
+            session: None,
+            lost: None,
+            newest_release: [0; 64],
+            seen: 0,
+            unattributed: [(0, 0); UNATTRIBUTED_MAX],
+            unattributed_len: 0,
+        }
     }
 
     /// Forgets everything (for example after a bus-off of the receiver).
@@ -440,7 +528,9 @@ impl Decoder {
         match self.session {
             Some(s) => {
                 now_us.saturating_sub(s.at_us) <= HEARTBEAT_TIMEOUT_US
-                    && s.fault.is_some_and(|f| f.at_us == accepted_us)
+                    && s.fault.is_some_and(|f| f.at_us == accepted_us && !f.pending)
+                    // Not a session that follows a stream delayed beyond the latency step.
+                    && s.lag_us <= MAX_LATENCY_STEP_US as i64
                     // Not accepted while a heartbeat was overdue (`Reception::stale`; a heartbeat
                     // received late within the latency step followed is not overdue).
                     && accepted_us.saturating_sub(s.at_us)
@@ -475,6 +565,11 @@ impl Decoder {
             withdrawn: 0,
             restart_jump: 0,
             count_corrupt: false,
+            early: false,
+            unattributed: false,
+            unattributed_fitting: 0,
+            unattributed_rejected: 0,
+            delayed_stream: false,
         };
         if let Some(mut s) = self.session {
             let silence = now_us.saturating_sub(s.at_us);
@@ -495,7 +590,13 @@ impl Decoder {
         }
         rec.result = match frame_payload(frame) {
             Err(e) => Err(e),
-            Ok((MessageKind::Status, bits)) => self.status(now_us, bits, &mut rec),
+            Ok((MessageKind::Status, bits)) => {
+                let r = self.status(now_us, bits, &mut rec);
+                if r.is_ok() {
+                    self.attribute_held(now_us, bits, &mut rec);
+                }
+                r
+            }
             Ok((MessageKind::Fault, bits)) => self.fault(now_us, bits, &mut rec),
         };
         rec
@@ -518,7 +619,28 @@ impl Decoder {
             }
             Some(s) => {
                 if loco != s.identity.locomotive {
-                    return Err(FrameError::ForeignSender { locomotive: loco });
+                    // A tentative session rests on one frame: two heartbeats of another
+                    // locomotive, one continuing the other in time (counter and receive time
+                    // advanced alike), outvote it (else a CRC-keeping corruption of the
+                    // opener's locomotive got every genuine frame flagged until a silence).
+                    let outvoted = s.tentative
+                        && s.rival.is_some_and(|(l, c, at)| {
+                            let dp = link.counter.wrapping_sub(c) % COUNTER_MOD;
+                            let span = u64::from(dp) * STATUS_PERIOD_US;
+                            l == loco
+                                && (1..COUNTER_MOD / 2).contains(&dp)
+                                && diff(now, at).saturating_sub(span as i64).unsigned_abs()
+                                    <= TOLERANCE_US + drift(span)
+                        });
+                    if !outvoted {
+                        if let Some(o) = self.session.as_mut().filter(|o| o.tentative) {
+                            o.rival = Some((loco, link.counter, now));
+                        }
+                        return Err(FrameError::ForeignSender { locomotive: loco });
+                    }
+                    rec.superseded = true;
+                    self.open(now, &link, true, rec);
+                    return Ok(report);
                 }
                 match continuation(&s, now, &link) {
                     Ok(c) => self.accept_status(s, now, &link, c, rec),
@@ -550,6 +672,24 @@ impl Decoder {
                             o.release_since_us = s.release_since_us;
                             o.fault = s.fault;
                             o.last_fault_counter = s.last_fault_counter;
+                            // Later than the opener's clock by a fraction of a period: no genuine
+                            // or replayed frame comes before it is due, so the stream after the
+                            // opener is delayed by that much (or the opener was forged). Up to
+                            // the latency step the receiver follows it is one; beyond it the
+                            // session follows a delayed stream, whose fault reports are not
+                            // current (else a uniform delay beginning right after a session's
+                            // first heartbeat was followed and its reports shown current).
+                            // Later by whole periods (within the step) is what a CRC-keeping
+                            // corruption of the opener's counter looks like too: not marked
+                            // (else every genuine report of such a session was shown stale).
+                            if let FrameError::Untimely { off_ms } = e {
+                                let late = i64::from(off_ms.max(0)) * 1000;
+                                let frac = late % STATUS_PERIOD_US as i64;
+                                if frac > MAX_LATENCY_STEP_US as i64 && frac < (STATUS_PERIOD_US - TOLERANCE_US) as i64
+                                {
+                                    o.lag_us = late;
+                                }
+                            }
                         }
                     }
                     // A sender that restarted before its heartbeat timed out (a power cycle
@@ -667,6 +807,7 @@ impl Decoder {
             restart_jump: 0,
             last_fault_counter: None,
             fault: None,
+            fault_before: None,
             tentative,
             overdue_reported: 0,
             lag_us: 0,
@@ -676,6 +817,7 @@ impl Decoder {
             unconfirmed: None,
             count_claim: None,
             first_late: None,
+            rival: None,
         });
         // A tentative session rests on one frame, which may be a replay: what it says of the
         // locomotive's newest release is believed only once a second heartbeat confirms it
@@ -871,6 +1013,9 @@ impl Decoder {
                     next
                 } else if let Some(p) = prev.filter(|p| check_crc(MessageKind::Fault, bits, *p).is_ok()) {
                     p
+                } else if in_lost || s.tentative {
+                    // (A tentative session rests on one frame, which may be old: F3.)
+                    return self.hold_unattributed(&s, now, bits, e, rec);
                 } else {
                     return Err(e);
                 }
@@ -915,6 +1060,29 @@ impl Decoder {
         let slack = (TOLERANCE_US + TAU_ROUNDING_US) as i64;
         let start = diff(now, tau_us);
         let mut replaced = false;
+        // The report before was early for its release start (its time since release said it was
+        // sent before it could have been), and this one, the next the sender counted, carries a
+        // time not larger but fits the start the reports before it set: the early one was the
+        // odd one (a corruption of its time that kept the CRC), not this genuine one. Judged
+        // against the reports before it, and it replaces the early one (else the genuine
+        // reports after a corrupted time were flagged as not newer). A genuine report never
+        // carries a time not larger than the one before (at least one 0.1 s step apart).
+        let mut dropped_early = None;
+        if let (Some(f), Some(b)) = (s.fault, s.fault_before) {
+            let since_b = diff(now, 0).saturating_sub(b.start_us);
+            let off_b = since_b.saturating_sub(tau_us as i64);
+            if f.early
+                && f.release == identity.release
+                && b.release == identity.release
+                && tau <= f.tau
+                && tau > b.tau
+                && counter == f.counter.wrapping_add(1) & 0xF
+                && off_b.abs() <= slack + drift(since_b.unsigned_abs()) as i64
+            {
+                s.fault = Some(b);
+                dropped_early = Some(f.pending);
+            }
+        }
         let track = match s.fault {
             Some(f) => {
                 let gap = diff(now, f.at_us);
@@ -1005,6 +1173,21 @@ impl Decoder {
                         }
                         start_us = start;
                     }
+                    // Early beyond the tolerance against a release start more than one report
+                    // set (one resting on a single report may have been set by a delayed
+                    // one): one frame does not move the reference. Accepted but not current;
+                    // the next report early the same way moves the start (the latency fell).
+                    let mut pending = false;
+                    let mut late_start_us = None;
+                    if off < -limit && off >= -(FAULT_EARLY_US as i64) && !saturated && !f.single {
+                        if f.late_start_us.is_some_and(|ls| start.saturating_sub(ls).abs() <= slack) {
+                            lag_us = lag_us.saturating_add(start.saturating_sub(start_us)).max(0);
+                            start_us = start;
+                        } else {
+                            pending = true;
+                            late_start_us = Some(start);
+                        }
+                    }
                     FaultTrack {
                         at_us: now,
                         release: f.release,
@@ -1015,7 +1198,10 @@ impl Decoder {
                         single: false,
                         unverified: false,
                         lag_us,
-                        late_start_us: None,
+                        late_start_us,
+                        early: diff(now, 0).saturating_sub(start_us).saturating_sub(tau_us as i64)
+                            < -(TAU_ROUNDING_US as i64),
+                        pending,
                     }
                 } else {
                     let unverified = self.first_report(&s, identity, start, slack, in_lost)?;
@@ -1092,7 +1278,19 @@ impl Decoder {
         }
         // No heartbeat on time vouches for it: accepted (it may be genuine: a status frame was
         // lost), but not current (a delayed stream, whose heartbeats are flagged, shows here).
-        rec.stale = missed > 0 || track.unverified || s.restart_jump > 0 || provisional;
+        rec.early = track.pending;
+        rec.delayed_stream = s.lag_us > MAX_LATENCY_STEP_US as i64;
+        rec.stale =
+            missed > 0 || track.unverified || s.restart_jump > 0 || provisional || track.pending || rec.delayed_stream;
+        // The early report this one replaced: a display that showed it as current stops showing
+        // it (one not shown as current was never held).
+        if dropped_early == Some(false) {
+            rec.withdrawn = rec.withdrawn.saturating_add(1);
+        }
+        if dropped_early.is_some() {
+            unconfirmed.reports = unconfirmed.reports.saturating_sub(1);
+        }
+        s.fault_before = s.fault;
         rec.restart_jump = s.restart_jump;
         if undo_release {
             self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
@@ -1108,6 +1306,69 @@ impl Decoder {
         }
         rec.identity = Some(identity);
         Ok(report)
+    }
+
+    /// A fault report after a silence whose CRC fails for the lost session's release (and the
+    /// next): the sender may have run on while this receiver heard nothing, so a release further
+    /// on — no more than one a second of silence allows — is tried; in a tentative session
+    /// (`lost` is then the session), whose one frame may be an old replay, every release of its
+    /// locomotive. One that fits is held as
+    /// unattributed (accepted, not current) until the next heartbeat decides
+    /// ([`Self::attribute_held`]); none fitting, or the hold full: flagged with `e`. (It was
+    /// flagged `wrong_crc` always: no live heartbeat attributed it.)
+    fn hold_unattributed(
+        &mut self,
+        lost: &Session,
+        now: u64,
+        bits: u64,
+        e: FrameError,
+        rec: &mut Reception,
+    ) -> Result<Report, FrameError> {
+        let silence = now.saturating_sub(lost.at_us);
+        // A tentative session's one frame may be a replay of any age: every release.
+        let possible = if lost.tentative { 63 } else { (1 + silence / MIN_RELEASE_US).min(63) as u8 };
+        let found = (1..=possible)
+            .map(|on| Identity { release: lost.identity.release.wrapping_add(on) & 0x3F, ..lost.identity })
+            .find(|id| check_crc(MessageKind::Fault, bits, *id).is_ok());
+        let (Some(identity), Some(slot)) = (found, self.unattributed.get_mut(usize::from(self.unattributed_len)))
+        else {
+            return Err(e);
+        };
+        let report = decode_signals(MessageKind::Fault, bits)?;
+        *slot = (now, bits);
+        self.unattributed_len += 1;
+        rec.unattributed = true;
+        rec.stale = true;
+        rec.identity = Some(identity);
+        Ok(report)
+    }
+
+    /// The heartbeat just accepted (`bits`, at `now`) decides the unattributed fault reports
+    /// held: one fits when its CRC passes for the heartbeat's locomotive and release (or the
+    /// release before: a release command between the two), its counter is one the heartbeat's
+    /// `FaultReportCount` counted (within the reports the rate bound allows since it came),
+    /// and its release began before the heartbeat. They are not fed into the fault-report
+    /// chain (they came before the frame that attributes them); a display shows the ones that
+    /// fit as past reports, and drops the others.
+    fn attribute_held(&mut self, now: u64, bits: u64, rec: &mut Reception) {
+        let n = usize::from(core::mem::take(&mut self.unattributed_len));
+        let link = status_link(bits);
+        let id = link.identity.masked();
+        let before = Identity { release: id.release.wrapping_sub(1) & 0x3F, ..id };
+        let count = link.fault_count & 0xF;
+        for &(at, fb) in self.unattributed.iter().take(n) {
+            let crc_fits =
+                check_crc(MessageKind::Fault, fb, id).is_ok() || check_crc(MessageKind::Fault, fb, before).is_ok();
+            let counter = l::FAULT_COUNTER.get(fb) as u8;
+            let counted = u64::from(count.wrapping_sub(1).wrapping_sub(counter) & 0xF) <= reports_possible(at, now);
+            let tau_us = l::TIME_SINCE_RELEASE.get(fb) * TAU_STEP_US;
+            let began_before = at <= now.saturating_add(TOLERANCE_US) && tau_us.saturating_add(now) >= at;
+            if crc_fits && counted && began_before {
+                rec.unattributed_fitting = rec.unattributed_fitting.saturating_add(1);
+            } else {
+                rec.unattributed_rejected = rec.unattributed_rejected.saturating_add(1);
+            }
+        }
     }
 
     /// Updates the fault track of the session a flagged report was judged against (the

@@ -188,7 +188,7 @@ impl std::fmt::Display for DecodeSummary {
         if self.stale_reports > 0 {
             write!(
                 f,
-                "; {} fault reports shown stale (heartbeat overdue, or a restart that cannot be vouched for)",
+                "; {} fault reports shown stale (heartbeat overdue or not yet heard, a time earlier than the reports before, or a restart that cannot be vouched for)",
                 self.stale_reports
             )?;
         }
@@ -402,6 +402,11 @@ impl<W: Write> CabDisplay<W> {
             withdrawn: 0,
             restart_jump: 0,
             count_corrupt: false,
+            early: false,
+            unattributed: false,
+            unattributed_fitting: 0,
+            unattributed_rejected: 0,
+            delayed_stream: false,
         }
     }
 
@@ -476,6 +481,26 @@ impl<W: Write> CabDisplay<W> {
                 )?;
             }
         }
+        if reception.unattributed_fitting > 0 && text {
+            writeln!(
+                self.out,
+                "{} s  -- {} fault report(s) heard before this heartbeat fit it ({}): past reports, not current",
+                time_text(t),
+                reception.unattributed_fitting,
+                identity_text(reception.identity)
+            )?;
+        }
+        if reception.unattributed_rejected > 0 {
+            *self.summary.flagged.entry("unattributed").or_default() += u64::from(reception.unattributed_rejected);
+            if text {
+                writeln!(
+                    self.out,
+                    "{} s  !! unattributed: {} fault report(s) heard before this heartbeat do not fit it (not the monitor's): dropped",
+                    time_text(t),
+                    reception.unattributed_rejected
+                )?;
+            }
+        }
         if reception.count_corrupt {
             self.summary.corrupt_counts += 1;
             if text {
@@ -511,7 +536,14 @@ impl<W: Write> CabDisplay<W> {
                 // No live heartbeat vouches for it: shown, never as the current report.
                 self.summary.fault_reports += 1;
                 self.summary.stale_reports += 1;
-                let why = if reception.restart_jump > 0 {
+                let why = if reception.unattributed {
+                    "stale: no heartbeat attributes it yet (after a silence, or a session resting on one frame); the next heartbeat decides"
+                        .to_owned()
+                } else if reception.delayed_stream {
+                    "stale: the stream is delayed beyond the latency step against its first heartbeat".to_owned()
+                } else if reception.early {
+                    "not current: sent earlier than the reports before it place it; the next report decides".to_owned()
+                } else if reception.restart_jump > 0 {
                     format!(
                         "not current: a restart {} releases on, which cannot be told from an old recording",
                         reception.restart_jump

@@ -3,38 +3,62 @@
 //! only the lines the tester disturbed may be flagged, and no genuine report may be shown stale
 //! or withdrawn.
 
-use pbm::can::{Decoder, Report};
+use embedded_can::Frame as _;
+use pbm::can::codec::e2e_crc;
+use pbm::can::layout as l;
+use pbm::can::{CanFrame, Decoder, Report};
 use pbm_io::can_log::read_log;
 
 /// What became of each line (1-based line numbers).
 #[derive(Debug, Default)]
 struct Outcome {
     flagged: Vec<usize>,
+    /// Fault reports accepted (shown, current or stale).
+    reports: Vec<usize>,
     stale: Vec<usize>,
     withdrawn: Vec<usize>,
     corrupt_counts: usize,
+    /// Unattributed reports the next heartbeat attributed, and dropped.
+    unattributed_fitting: usize,
+    unattributed_rejected: usize,
+}
+
+/// The frames of a reproducer log: (receive time µs, frame), in log order.
+fn records(name: &str) -> Vec<(u64, CanFrame)> {
+    let path = format!("{}/tests/data/can_findings/{name}", env!("CARGO_MANIFEST_DIR"));
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    read_log(&bytes[..])
+        .map(|rec| {
+            let rec = rec.unwrap_or_else(|e| panic!("{name}: {e:?}"));
+            (rec.time_us, rec.frame)
+        })
+        .collect()
 }
 
 fn decode(name: &str) -> Outcome {
-    let path = format!("{}/tests/data/can_findings/{name}", env!("CARGO_MANIFEST_DIR"));
-    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    decode_records(&records(name))
+}
+
+fn decode_records(frames: &[(u64, CanFrame)]) -> Outcome {
     let mut d = Decoder::new();
     let mut o = Outcome::default();
     let mut accepted = Vec::new();
-    for (i, rec) in read_log(&bytes[..]).enumerate() {
-        let rec = rec.unwrap_or_else(|e| panic!("{name}: {e:?}"));
+    for (i, (time_us, frame)) in frames.iter().enumerate() {
         let line = i + 1;
-        let r = d.receive(rec.time_us, &rec.frame);
+        let r = d.receive(*time_us, frame);
         for _ in 0..r.withdrawn {
             if let Some(l) = accepted.pop() {
                 o.withdrawn.push(l);
             }
         }
         o.corrupt_counts += usize::from(r.count_corrupt);
+        o.unattributed_fitting += usize::from(r.unattributed_fitting);
+        o.unattributed_rejected += usize::from(r.unattributed_rejected);
         match r.result {
             Err(_) => o.flagged.push(line),
             Ok(Report::Fault(_)) => {
                 accepted.push(line);
+                o.reports.push(line);
                 if r.stale {
                     o.stale.push(line);
                 }
@@ -107,4 +131,120 @@ fn f2_a_lag_4096_replay_of_another_release_alone_is_flagged() {
     let o = decode("F2_lag4096_status_replay_other_release_locks_out.log");
     assert_eq!(o.flagged, vec![15], "{o:?}");
     assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+}
+
+/// F8: a CRC-keeping corruption of one fault report (line 162) moved its time since release
+/// 0.2 s ahead (26.5 → 26.7 s): it was shown current, and the next two genuine reports
+/// (26.6 s, 26.7 s) were flagged as not newer. One frame does not move the reference now: the
+/// early one is accepted but not current, the genuine report after it (the next counter, at
+/// the moment the reports before set) replaces it, and nothing is flagged or lost.
+#[test]
+fn f8_a_corrupted_report_time_gets_no_genuine_report_flagged() {
+    let o = decode("F8_crc_passing_corruption_of_report_time_rejects_following_genuine.log");
+    assert!(o.flagged.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+    // The corrupted one: never shown as current; no genuine report stale.
+    assert_eq!(o.stale, vec![162], "{o:?}");
+}
+
+/// F8, one step (the time moved 0.1 s ahead, received 40 ms late so that it stays within the
+/// tolerance): the corrupted report is shown current, and withdrawn when the genuine report
+/// after it, with a time not larger, comes at the right moment; nothing is flagged.
+#[test]
+fn f8_a_report_time_one_step_ahead_is_withdrawn_by_the_genuine_report_after_it() {
+    let mut frames = records("F8_crc_passing_corruption_of_report_time_rejects_following_genuine.log");
+    let Some((t, f)) = frames.get_mut(161) else { panic!("line 162 missing") };
+    let mut payload = [0u8; 8];
+    payload.copy_from_slice(f.data());
+    let mut bits = u64::from_le_bytes(payload);
+    assert_eq!(l::TIME_SINCE_RELEASE.get(bits), 267, "the corrupted line");
+    l::TIME_SINCE_RELEASE.put(&mut bits, 266);
+    let mut payload = bits.to_le_bytes();
+    // Locomotive 7, release 5 (the stream's), as the sender's CRC covers them.
+    let identity = pbm::can::codec::Identity { locomotive: 7, release: 5 };
+    payload[0] = e2e_crc(l::FAULT_REPORT.data_id, Some(identity), &payload);
+    *f = CanFrame::from_extended(l::FAULT_REPORT.id, payload);
+    *t += 40_000;
+    let o = decode_records(&frames);
+    assert!(o.flagged.is_empty() && o.stale.is_empty(), "{o:?}");
+    assert_eq!(o.withdrawn, vec![162], "{o:?}");
+}
+
+/// A receiver deaf for 3767 s while the monitor went from release 3 to 32 (the third tester's
+/// `d_outage` kind, its seed 700): the fault report it hears first after the silence
+/// comes before the first heartbeat (line 147) and was flagged `wrong_crc` (no live heartbeat attributed
+/// it). Now it is held as unattributed (accepted, shown stale, never current), and the
+/// heartbeat after it attributes it: nothing is flagged.
+#[test]
+fn a_report_between_a_receiver_outage_and_the_next_heartbeat_is_held_not_flagged() {
+    let o = decode("outage_report_before_the_first_heartbeat_after_it.log");
+    assert!(o.flagged.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+    assert_eq!(o.stale, vec![147], "{o:?}");
+    assert_eq!((o.unattributed_fitting, o.unattributed_rejected), (1, 0), "{o:?}");
+}
+
+/// The same with line 147 forged: a report whose CRC fits the release the monitor reached (32)
+/// but whose counter (3) the heartbeat after it never counted (its count says 11 was the last):
+/// held as unattributed (never current), then dropped by that heartbeat.
+#[test]
+fn an_unattributed_report_the_next_heartbeat_does_not_count_is_dropped() {
+    let mut frames = records("outage_report_before_the_first_heartbeat_after_it.log");
+    let Some((_, f)) = frames.get_mut(146) else { panic!("line 147 missing") };
+    let mut payload = [0u8; 8];
+    payload.copy_from_slice(f.data());
+    let mut bits = u64::from_le_bytes(payload);
+    assert_eq!(l::FAULT_COUNTER.get(bits), 11, "the genuine line");
+    l::FAULT_COUNTER.put(&mut bits, 3);
+    let mut payload = bits.to_le_bytes();
+    let identity = pbm::can::codec::Identity { locomotive: 7, release: 32 };
+    payload[0] = e2e_crc(l::FAULT_REPORT.data_id, Some(identity), &payload);
+    *f = CanFrame::from_extended(l::FAULT_REPORT.id, payload);
+    let o = decode_records(&frames);
+    assert!(o.flagged.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+    assert_eq!(o.stale, vec![147], "{o:?}");
+    assert_eq!((o.unattributed_fitting, o.unattributed_rejected), (0, 1), "{o:?}");
+}
+
+/// F1c: the first heartbeat on time, every later frame late (a gateway that starts queueing
+/// right after start-up); the reproducer's 2 s, less 1.5 s: 0.5 s. The later heartbeats replace
+/// the tentative opener (the receiver cannot tell which was off), but they came later than the
+/// opener's clock by a fraction of a period, which no genuine or replayed frame does: the
+/// session follows a delayed stream, beyond the latency step, and none of its fault reports is
+/// shown as current (they were from release 3 on). With the reproducer's whole 2 s the delay
+/// cannot be told from a CRC-keeping corruption of the opener's counter (can/README.md).
+#[test]
+fn f1c_a_stream_delayed_after_its_first_heartbeat_shows_no_report_current() {
+    let mut frames = records("F1c_uniform_2s_delay_after_first_heartbeat_followed_reports_current.log");
+    for (t, _) in frames.iter_mut().skip(1) {
+        *t -= 1_500_000;
+    }
+    let o = decode_records(&frames);
+    assert!(o.reports.len() >= 10, "{o:?}");
+    assert_eq!(o.stale, o.reports, "{o:?}");
+}
+
+/// F6 family (the third tester's `a_corrupt_first` kind, its seed 716, first 60 lines): the
+/// session's opening heartbeat (line 1) carries a CRC-keeping corruption of its locomotive
+/// (7 → 3). Every genuine heartbeat was flagged `foreign_sender` until the tentative session
+/// timed out (3 s). Now two genuine heartbeats, the second continuing the first in time,
+/// outvote the one frame: only the first of them (line 2) is flagged.
+#[test]
+fn a_corrupted_opener_locomotive_is_outvoted_by_two_genuine_heartbeats() {
+    let o = decode("corrupted_opener_locomotive.log");
+    assert_eq!(o.flagged, vec![2], "{o:?}");
+    assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
+}
+
+/// F3: a display whose first frame is an old heartbeat (release 3, line 1) of the live
+/// monitor (release 4): the live frames after it were all flagged, then (after the fix of the
+/// third round) the first live heartbeat and the reports of the first second. Now the first
+/// live heartbeat (line 2, 0.3 s after the old one) alone is flagged; the reports before the
+/// next heartbeat, whose CRC fits only another release, are held as unattributed (shown stale,
+/// never current) and that heartbeat, which replaces the old opener, attributes them.
+#[test]
+fn f3_an_old_heartbeat_heard_first_gets_one_live_frame_flagged() {
+    let o = decode("F3_latejoin_old_status_locks_out.log");
+    assert_eq!(o.flagged, vec![2], "{o:?}");
+    assert_eq!(o.stale, vec![3, 4, 5], "{o:?}");
+    assert_eq!((o.unattributed_fitting, o.unattributed_rejected), (3, 0), "{o:?}");
+    assert!(o.withdrawn.is_empty(), "{o:?}");
 }
