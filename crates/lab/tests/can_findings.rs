@@ -186,3 +186,26 @@ fn r2_f1e_a_proper_restart_after_a_phase_step_is_current() {
     assert_eq!(relocks, vec![(594, 300)]);
     assert!(o.stale.is_empty() && o.withdrawn.is_empty(), "{o:?}");
 }
+
+/// F3 (text): a status frame turned into a CRC-passing fault report by a 3-bit error (line 363)
+/// is shown stale and withdrawn at the next heartbeat; the withdrawal line said "up to - s"
+/// because the report withdrawn had been shown stale, never held. It now names its time.
+/// (The 15 fault reports it makes the receiver claim lost are left: can/README.md.)
+#[test]
+fn r2_f3_a_withdrawal_names_the_time_of_a_report_shown_stale() {
+    use pbm_lab::can_cmd::{decode_log, CabDisplay, DecodeFormat};
+    let path = format!(
+        "{}/tests/data/can_findings/R2_F3_status_morphed_into_crc_passing_report.log",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mut out = Vec::new();
+    let mut d = CabDisplay::new(&mut out, false, DecodeFormat::Text);
+    decode_log(&bytes[..], &mut d).unwrap();
+    let summary = d.finish().unwrap();
+    let text = String::from_utf8(out).unwrap();
+    let withdrawn: Vec<&str> = text.lines().filter(|l| l.contains("!! withdrawn")).collect();
+    assert_eq!(summary.withdrawn, 1, "{text}");
+    assert_eq!(withdrawn.len(), 1, "{text}");
+    assert!(withdrawn[0].contains("up to 406.950 s"), "{}", withdrawn[0]);
+}
