@@ -823,6 +823,46 @@ fn a_latency_step_flags_one_heartbeat_then_resynchronises() {
     assert_eq!(relocked, vec![(12_400_000, 400)]);
 }
 
+/// Re-locking onto a stepped phase (second black-box attacker, F1) holds when every frame is
+/// delivered twice (a redundant gateway path, the copy 10 ms later): a copy neither extends
+/// nor breaks the run of heartbeats at the new phase. A step of −1.5 s (the receiver's clock
+/// set back) and one of +2 s (beyond the heartbeat timeout) re-lock the same way; a step
+/// beyond `MAX_RELOCK_US` stays flagged.
+#[test]
+fn a_phase_step_re_locks_with_every_frame_doubled_and_within_max_relock() {
+    use pbm::can::MAX_RELOCK_US;
+    let g = genuine_stream(40);
+    for (step_us, doubled) in [(400_000i64, true), (-1_500_000, false), (2_000_000, false), (-1_500_000, true)] {
+        let mut s: Vec<(u64, CanFrame)> = Vec::new();
+        for &(t, f) in &g {
+            let t = if t >= 10_000_000 { t.saturating_add_signed(step_us) } else { t };
+            s.push((t, f));
+            if doubled {
+                s.push((t + 10_000, f));
+            }
+        }
+        let mut d = Decoder::new();
+        let mut relocked = Vec::new();
+        let mut late_flags = 0;
+        for (t, f) in &s {
+            let r = d.receive(*t, f);
+            if let Some(ms) = r.relocked_ms {
+                relocked.push(ms);
+            }
+            if !relocked.is_empty() && r.result.is_err() && !doubled {
+                late_flags += 1;
+            }
+        }
+        assert_eq!(relocked, vec![(step_us / 1000) as i32], "step {step_us} µs, doubled {doubled}");
+        assert_eq!(late_flags, 0, "step {step_us} µs: nothing flagged after the re-lock");
+    }
+    let far = i64::try_from(MAX_RELOCK_US).unwrap() + 500_000;
+    let s: Vec<(u64, CanFrame)> =
+        g.iter().map(|&(t, f)| (if t >= 10_000_000 { t.saturating_add_signed(far) } else { t }, f)).collect();
+    let mut d = Decoder::new();
+    assert!(s.iter().all(|(t, f)| d.receive(*t, f).relocked_ms.is_none()));
+}
+
 /// A report that changed (X → Y) and changed back (Y → X) within a second: when Y is lost the
 /// second X is not a repeat of the first (its counter skipped one) and is accepted, the loss
 /// reported. The tester found it rejected by the 1 s rule (51 of 494 single deletions).

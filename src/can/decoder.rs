@@ -1274,6 +1274,14 @@ fn phase_run(s: &Session, now: u64, link: &StatusLink) -> Option<(PhaseRun, i64)
     if s.relocked_us != 0 && shift.saturating_add(s.relocked_us).abs() <= tol {
         return Some((PhaseRun { counter: link.counter, at_us: now, release, count, len: RELOCK_RUN }, shift));
     }
+    // A frame not newer than the run's last (a copy, a replay) neither extends nor breaks it
+    // (else a second path delivering every frame twice, or an injected copy, kept the receiver
+    // from ever re-locking).
+    if s.phase_run
+        .is_some_and(|r| !(1..COUNTER_MOD / 2).contains(&(link.counter.wrapping_sub(r.counter) % COUNTER_MOD)))
+    {
+        return None;
+    }
     let len = s.phase_run.map_or(1, |r| {
         let dc = link.counter.wrapping_sub(r.counter) % COUNTER_MOD;
         let span = u64::from(dc) * STATUS_PERIOD_US;
@@ -1366,9 +1374,10 @@ impl Decoder {
         if result.is_err() {
             // Still the session it was judged against (a flagged frame replaces none).
             let held = if in_lost { self.lost.as_mut() } else { self.session.as_mut() };
-            if let (Some(h), Some(s)) = (held, judged) {
+            // (A frame that is no part of a run leaves the run as it is.)
+            if let (Some(h), Some(s), Some((r, _))) = (held, judged, run) {
                 if h.identity.locomotive == s.identity.locomotive && h.counter == s.counter {
-                    h.phase_run = run.map(|(r, _)| r);
+                    h.phase_run = Some(r);
                 }
             }
         }
