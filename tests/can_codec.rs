@@ -795,21 +795,72 @@ fn a_latency_step_flags_one_heartbeat_then_resynchronises() {
     // Early steps (the latency falls) are followed too, nothing flagged.
     let s: Vec<(u64, CanFrame)> = g.iter().map(|&(t, f)| (if t >= 7_000_000 { t - 200_000 } else { t }, f)).collect();
     assert_eq!(flagged(&run(&s).0), 0);
-    // A uniform delay of 400 ms from 10 s on: every heartbeat after it flagged; the fault
-    // reports once a heartbeat is overdue are stale (not current).
+    // A uniform delay of 400 ms from 10 s on (beyond the step followed): the heartbeats at the
+    // new phase are flagged, and the fault reports once a heartbeat is overdue are stale (not
+    // current), until RELOCK_RUN heartbeats in a row at the new phase re-lock the session clock
+    // (the third, at 12.4 s); nothing after it is flagged or stale.
+    use pbm::can::RELOCK_RUN;
+    assert_eq!(RELOCK_RUN, 3);
     let s: Vec<(u64, CanFrame)> = g.iter().map(|&(t, f)| (if t >= 10_000_000 { t + 400_000 } else { t }, f)).collect();
     let mut d = Decoder::new();
+    let mut relocked = Vec::new();
     for (t, f) in &s {
         let r = d.receive(*t, f);
-        if *t >= 10_000_000 && is_status(f) {
-            // (`untimely`; after the timeout `stale`: it does not continue the lost session.)
+        if let Some(step_ms) = r.relocked_ms {
+            relocked.push((*t, step_ms));
+        }
+        if (10_000_000..12_400_000).contains(t) && is_status(f) {
             assert!(r.result.is_err(), "{t}: {r:?}");
         }
-        if *t >= 11_100_000 && r.result.is_ok() {
+        if (11_100_000..12_400_000).contains(t) && r.result.is_ok() {
             assert!(r.stale, "{t}: {r:?}");
             assert!(!d.is_current(*t, *t));
         }
+        if *t >= 12_400_000 {
+            assert!(r.result.is_ok() && !r.stale && r.lost_fault_reports == 0, "{t}: {r:?}");
+        }
     }
+    assert_eq!(relocked, vec![(12_400_000, 400)]);
+}
+
+/// Re-locking onto a stepped phase (second black-box attacker, F1) holds when every frame is
+/// delivered twice (a redundant gateway path, the copy 10 ms later): a copy neither extends
+/// nor breaks the run of heartbeats at the new phase. A step of −1.5 s (the receiver's clock
+/// set back) and one of +2 s (beyond the heartbeat timeout) re-lock the same way; a step
+/// beyond `MAX_RELOCK_US` stays flagged.
+#[test]
+fn a_phase_step_re_locks_with_every_frame_doubled_and_within_max_relock() {
+    use pbm::can::MAX_RELOCK_US;
+    let g = genuine_stream(40);
+    for (step_us, doubled) in [(400_000i64, true), (-1_500_000, false), (2_000_000, false), (-1_500_000, true)] {
+        let mut s: Vec<(u64, CanFrame)> = Vec::new();
+        for &(t, f) in &g {
+            let t = if t >= 10_000_000 { t.saturating_add_signed(step_us) } else { t };
+            s.push((t, f));
+            if doubled {
+                s.push((t + 10_000, f));
+            }
+        }
+        let mut d = Decoder::new();
+        let mut relocked = Vec::new();
+        let mut late_flags = 0;
+        for (t, f) in &s {
+            let r = d.receive(*t, f);
+            if let Some(ms) = r.relocked_ms {
+                relocked.push(ms);
+            }
+            if !relocked.is_empty() && r.result.is_err() && !doubled {
+                late_flags += 1;
+            }
+        }
+        assert_eq!(relocked, vec![(step_us / 1000) as i32], "step {step_us} µs, doubled {doubled}");
+        assert_eq!(late_flags, 0, "step {step_us} µs: nothing flagged after the re-lock");
+    }
+    let far = i64::try_from(MAX_RELOCK_US).unwrap() + 500_000;
+    let s: Vec<(u64, CanFrame)> =
+        g.iter().map(|&(t, f)| (if t >= 10_000_000 { t.saturating_add_signed(far) } else { t }, f)).collect();
+    let mut d = Decoder::new();
+    assert!(s.iter().all(|(t, f)| d.receive(*t, f).relocked_ms.is_none()));
 }
 
 /// A report that changed (X → Y) and changed back (Y → X) within a second: when Y is lost the

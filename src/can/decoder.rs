@@ -36,6 +36,15 @@
 //! heartbeat times out (a newer release number, a counter not above the time since the last
 //! heartbeat) opens a new tentative session at once.
 //!
+//! A step of the phase beyond that (a clock step of the receiver, a gateway latency that
+//! began, or one that set the session clock and ended) is re-locked onto: [`RELOCK_RUN`]
+//! consecutive newer heartbeats at one new phase, each consistent with the session (counter
+//! chain, release number, `FaultReportCount`) and within [`MAX_RELOCK_US`], move the session
+//! clock and every receive time the session holds to the new phase ([`Reception::relocked_ms`];
+//! the heartbeats before the last are flagged). A heartbeat back at the phase the session was
+//! first locked onto re-locks at once. This works on the session the step made time out too,
+//! so the release number the receiver remembers follows the sender.
+//!
 //! `d − 1` heartbeats were lost ([`Reception::lost_status`]; a fault report that arrives when a
 //! heartbeat is overdue reports it at once); fault reports the sender counted but this receiver
 //! never accepted are reported as lost too ([`Reception::lost_fault_reports`]), except the last
@@ -134,12 +143,25 @@ const COUNTER_MOD: u16 = 4096;
 /// that starts queueing): the phase of the heartbeats, or of a release's fault reports, may move
 /// up to this much later than the earliest phase the session has seen, once two consecutive
 /// frames show the new phase (the first of them is flagged: one delayed frame looks the same).
-/// A uniform delay beyond it stays flagged and the session times out.
+/// A larger step is re-locked onto after [`RELOCK_RUN`] heartbeats at the new phase.
 pub const MAX_LATENCY_STEP_US: u64 = 250_000;
 /// How many unattributed fault reports ([`Reception::unattributed`]) the receiver holds until a
 /// heartbeat attributes them: the sender sends at most 11 in a heartbeat period. Beyond it they
 /// are flagged.
 const UNATTRIBUTED_MAX: usize = 12;
+/// How far the receiver re-locks onto a heartbeat phase that stepped beyond
+/// [`MAX_LATENCY_STEP_US`] (a logger or display clock step, a gateway latency that starts or
+/// ends): up to this much later or earlier than the session clock, after [`RELOCK_RUN`]
+/// consecutive heartbeats at the new phase. Beyond it the counter (seconds since power-up) and
+/// the receive clock disagree by more than any clock step or gateway explains.
+pub const MAX_RELOCK_US: u64 = 10_000_000;
+/// Consecutive heartbeats at one new phase, each consistent with the session (counter chain,
+/// release number, `FaultReportCount`), that re-lock the session clock onto that phase: the
+/// first `RELOCK_RUN - 1` are flagged (a delayed or early frame looks the same), the last is
+/// accepted and moves the clock.
+pub const RELOCK_RUN: u8 = 3;
+/// The largest counter step between two heartbeats of a re-lock run (one lost between them).
+const RELOCK_MAX_STEP: u16 = 2;
 
 /// Clock drift allowed between sender and receiver over `dt`: 200 ppm (crystal oscillators
 /// stay within 100 ppm).
@@ -274,6 +296,12 @@ struct Session {
     /// that continues it in time outvotes the one frame the session rests on (a corruption of
     /// its locomotive that kept the CRC, or a stray frame), and replaces the session.
     rival: Option<(u8, u16, u64)>,
+    /// Consecutive newer heartbeats flagged at one phase other than the session clock's (see
+    /// [`PhaseRun`]); cleared by an accepted heartbeat.
+    phase_run: Option<PhaseRun>,
+    /// How far the re-locks since the session opened moved its clock, µs: a heartbeat back at
+    /// the phase before them (a latency that ended) re-locks at once.
+    relocked_us: i64,
 }
 
 /// A status frame's `FaultReportCount` that contradicts the chain of the accepted reports'
@@ -461,6 +489,11 @@ pub struct Reception {
     /// replayed frame does): this fault report is late by that much, so not current (also
     /// [`Self::stale`]).
     pub delayed_stream: bool,
+    /// This status frame re-locked the session clock onto a heartbeat phase that stepped by
+    /// this many ms (positive: later) beyond what the clock follows: a clock step of the
+    /// receiver, or a bus latency that began or ended ([`RELOCK_RUN`] heartbeats in a row at the
+    /// new phase; the frames before at the old one were flagged). `None` when not.
+    pub relocked_ms: Option<i32>,
 }
 
 /// Stream decoder of the monitor's frames.
@@ -570,6 +603,7 @@ impl Decoder {
             unattributed_fitting: 0,
             unattributed_rejected: 0,
             delayed_stream: false,
+            relocked_ms: None,
         };
         if let Some(mut s) = self.session {
             let silence = now_us.saturating_sub(s.at_us);
@@ -591,7 +625,7 @@ impl Decoder {
         rec.result = match frame_payload(frame) {
             Err(e) => Err(e),
             Ok((MessageKind::Status, bits)) => {
-                let r = self.status(now_us, bits, &mut rec);
+                let r = self.status_or_relock(now_us, bits, &mut rec);
                 if r.is_ok() {
                     self.attribute_held(now_us, bits, &mut rec);
                 }
@@ -818,6 +852,8 @@ impl Decoder {
             count_claim: None,
             first_late: None,
             rival: None,
+            phase_run: None,
+            relocked_us: 0,
         });
         // A tentative session rests on one frame, which may be a replay: what it says of the
         // locomotive's newest release is believed only once a second heartbeat confirms it
@@ -963,6 +999,7 @@ impl Decoder {
         s.counter = link.counter;
         s.at_us = now;
         s.tentative = false;
+        s.phase_run = None;
         self.session = Some(s);
         self.remember(link);
         if c.undo_release || c.release_wrapped {
@@ -1438,6 +1475,183 @@ impl Decoder {
         Ok(earliest.is_none() && start < s.power_up_us.saturating_sub(slack))
     }
 }
+
+// ---- Re-locking onto a stepped heartbeat phase (issue 18, F1 of the second black-box tester) ----
+//
+// A lasting step of the frames' phase beyond what the session clock follows (a latency step
+// over MAX_LATENCY_STEP_US, a latency that ends after the session clock was set by it, a step
+// of the logger's or display's clock) made every later heartbeat untimely, the session time
+// out, and every later frame of the sender be refused, its release number no longer followed.
+// The receiver now re-locks on genuine evidence only: RELOCK_RUN consecutive heartbeats at one
+// new phase, each newer than the session's last, with a release number and a fault-report
+// count the session allows, and each continuing the one before in counter and time. While the
+// sender's genuine heartbeats are heard at the old phase, no frame can build such a run (a copy
+// or a delayed replay is never newer than the genuine heartbeat accepted): only a stream whose
+// every heartbeat moved does.
+
+/// Newer heartbeats of a session flagged one after the other at one phase other than the
+/// session clock's: the last one, and how many in a row.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct PhaseRun {
+    /// Counter and receive time of the last heartbeat of the run.
+    counter: u16,
+    at_us: u64,
+    /// Its release number and `FaultReportCount`.
+    release: u8,
+    count: u8,
+    /// Heartbeats in the run.
+    len: u8,
+}
+
+/// The run of session `s` this status frame extends (or starts), and how far the frame's phase
+/// is from the session clock (µs, positive: later); `None` when the frame cannot belong to the
+/// session's sender running on (another locomotive, a counter not newer, a release number or a
+/// fault-report count the time since does not allow, a phase further off than
+/// [`MAX_RELOCK_US`]).
+fn phase_run(s: &Session, now: u64, link: &StatusLink) -> Option<(PhaseRun, i64)> {
+    let release = link.identity.release & 0x3F;
+    let count = link.fault_count & 0xF;
+    let d = link.counter.wrapping_sub(s.counter) % COUNTER_MOD;
+    let span = u64::from(d) * STATUS_PERIOD_US;
+    let consistent = |last_release: u8, last_count: u8, periods: u16, span: u64| {
+        release_not_before(release, last_release)
+            && u16::from(release.wrapping_sub(last_release) & 0x3F) <= 1 + periods
+            && u64::from(count.wrapping_sub(last_count) & 0xF) <= reports_possible(0, span)
+    };
+    if link.identity.locomotive & 0x3F != s.identity.locomotive
+        || !(1..COUNTER_MOD / 2).contains(&d)
+        || !consistent(s.identity.release, s.status_count, d, span)
+    {
+        return None;
+    }
+    let due = s.anchor_us.saturating_add(i64::try_from(span).unwrap_or(i64::MAX));
+    let shift = diff(now, 0).saturating_sub(due);
+    if shift.unsigned_abs() > MAX_RELOCK_US {
+        return None;
+    }
+    // Back at the phase the session had before it re-locked (a gateway latency that ended):
+    // the phase the session was first locked onto, at once.
+    let tol = i64::try_from(TOLERANCE_US + drift(span)).unwrap_or(i64::MAX);
+    if s.relocked_us != 0 && shift.saturating_add(s.relocked_us).abs() <= tol {
+        return Some((PhaseRun { counter: link.counter, at_us: now, release, count, len: RELOCK_RUN }, shift));
+    }
+    // A frame not newer than the run's last (a copy, a replay) neither extends nor breaks it
+    // (else a second path delivering every frame twice, or an injected copy, kept the receiver
+    // from ever re-locking).
+    if s.phase_run
+        .is_some_and(|r| !(1..COUNTER_MOD / 2).contains(&(link.counter.wrapping_sub(r.counter) % COUNTER_MOD)))
+    {
+        return None;
+    }
+    let len = s.phase_run.map_or(1, |r| {
+        let dc = link.counter.wrapping_sub(r.counter) % COUNTER_MOD;
+        let span = u64::from(dc) * STATUS_PERIOD_US;
+        let in_phase = diff(now, r.at_us).saturating_sub(span as i64).unsigned_abs() <= TOLERANCE_US + drift(span);
+        if (1..=RELOCK_MAX_STEP).contains(&dc) && in_phase && consistent(r.release, r.count, dc, span) {
+            r.len.saturating_add(1)
+        } else {
+            1
+        }
+    });
+    Some((PhaseRun { counter: link.counter, at_us: now, release, count, len }, shift))
+}
+
+impl Session {
+    /// The session with its clock and every receive time it holds moved by `shift` µs: what it
+    /// would have been had the phase been the new one from the start. The latency steps
+    /// followed and the evidence of off-phase frames start afresh.
+    fn shifted(mut self, shift: i64) -> Self {
+        let mv = |t: u64| t.saturating_add_signed(shift);
+        self.anchor_us = self.anchor_us.saturating_add(shift);
+        self.at_us = mv(self.at_us);
+        self.release_since_us = mv(self.release_since_us);
+        self.release_before_us = self.release_before_us.map(mv);
+        self.power_up_us = self.power_up_us.saturating_add(shift);
+        self.release_prev = self.release_prev.map(|(r, before, since)| (r, before.map(mv), mv(since)));
+        if let Some(f) = self.fault.as_mut() {
+            f.at_us = mv(f.at_us);
+            f.start_us = f.start_us.saturating_add(shift);
+            f.lag_us = 0;
+            f.late_start_us = None;
+        }
+        if let Some(u) = self.unconfirmed.as_mut() {
+            if let Some(f) = u.fault.as_mut() {
+                f.at_us = mv(f.at_us);
+                f.start_us = f.start_us.saturating_add(shift);
+            }
+        }
+        if let Some(f) = self.fault_before.as_mut() {
+            f.at_us = mv(f.at_us);
+            f.start_us = f.start_us.saturating_add(shift);
+        }
+        // A rival heartbeat heard at the old phase is no evidence at the new one.
+        self.rival = None;
+        self.lag_us = 0;
+        self.off_phase = None;
+        self.first_late = None;
+        self.phase_run = None;
+        self.relocked_us = self.relocked_us.saturating_add(shift);
+        self
+    }
+}
+
+impl Decoder {
+    /// A status frame: the rules of [`Decoder::status`], and re-locking onto a stepped phase.
+    /// A frame that completes a run of [`RELOCK_RUN`] heartbeats at one new phase of the open
+    /// session (or of the one lost to the silence the step caused) moves the session clock to
+    /// that phase and is accepted ([`Reception::relocked_ms`]); a flagged newer heartbeat of the
+    /// session extends or starts its run.
+    fn status_or_relock(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
+        if check_crc(MessageKind::Status, bits, Identity::default()).is_err() {
+            return self.status(now, bits, rec);
+        }
+        let link = status_link(bits);
+        let loco = link.identity.locomotive & 0x3F;
+        let in_lost = self.session.is_none();
+        let judged = if in_lost { self.lost } else { self.session };
+        let run = judged.filter(|s| s.identity.locomotive == loco).and_then(|s| phase_run(&s, now, &link));
+        if let (Some(s), Some((r, shift)), Ok(report)) = (judged, run, decode_signals(MessageKind::Status, bits)) {
+            if r.len >= RELOCK_RUN {
+                let mut moved = s.shifted(shift);
+                if let Ok(c) = continuation(&moved, now, &link) {
+                    // (The heartbeats of the run before this one were received, flagged: not lost.)
+                    moved.overdue_reported = moved.overdue_reported.max(u16::from(r.len - 1));
+                    // Nor were the fault reports sent meanwhile, flagged at the old phase: the
+                    // count of the heartbeat that re-locks, consistent with the run's, is the
+                    // sender's from here on.
+                    let count = link.fault_count & 0xF;
+                    moved.next_fault = count;
+                    moved.status_count = count;
+                    moved.owed_fault = None;
+                    moved.count_claim = None;
+                    moved.unconfirmed = None;
+                    if moved.last_fault_counter.is_some() {
+                        moved.last_fault_counter = Some(count.wrapping_sub(1) & 0xF);
+                    }
+                    if in_lost {
+                        self.lost = None;
+                    }
+                    self.accept_status(moved, now, &link, c, rec);
+                    rec.relocked_ms = Some(ms(shift));
+                    return Ok(report);
+                }
+            }
+        }
+        let result = self.status(now, bits, rec);
+        if result.is_err() {
+            // Still the session it was judged against (a flagged frame replaces none).
+            let held = if in_lost { self.lost.as_mut() } else { self.session.as_mut() };
+            // (A frame that is no part of a run leaves the run as it is.)
+            if let (Some(h), Some(s), Some((r, _))) = (held, judged, run) {
+                if h.identity.locomotive == s.identity.locomotive && h.counter == s.counter {
+                    h.phase_run = Some(r);
+                }
+            }
+        }
+        result
+    }
+}
+// ---- end of re-locking ----
 
 /// How a heartbeat fits the session clock.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

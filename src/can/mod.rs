@@ -32,6 +32,6 @@ pub mod reporter;
 pub use codec::{
     decode_frame, encode_fault, encode_status, quantize_fault, FrameError, Identity, MessageKind, Report, StatusLink,
 };
-pub use decoder::{Decoder, Reception, HEARTBEAT_TIMEOUT_US, MAX_LATENCY_STEP_US};
+pub use decoder::{Decoder, Reception, HEARTBEAT_TIMEOUT_US, MAX_LATENCY_STEP_US, MAX_RELOCK_US, RELOCK_RUN};
 pub use frame::CanFrame;
 pub use reporter::{CanReporter, Outbox};

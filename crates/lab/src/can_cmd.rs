@@ -344,6 +344,9 @@ pub struct CabDisplay<W: Write> {
     /// For the last accepted fault reports (up to 16), what was held before each: a withdrawal
     /// ([`pbm::can::Reception::withdrawn`]) goes back to it.
     held_before: std::collections::VecDeque<Option<(u64, Option<Identity>)>>,
+    /// Receive time of the last fault report accepted, shown stale or not (what a withdrawal
+    /// names when the withdrawn report was shown stale and never held).
+    last_report_us: Option<u64>,
 }
 
 impl<W: Write> CabDisplay<W> {
@@ -360,6 +363,7 @@ impl<W: Write> CabDisplay<W> {
             start_us: None,
             held: None,
             held_before: std::collections::VecDeque::new(),
+            last_report_us: None,
         }
     }
 
@@ -407,6 +411,7 @@ impl<W: Write> CabDisplay<W> {
             unattributed_fitting: 0,
             unattributed_rejected: 0,
             delayed_stream: false,
+            relocked_ms: None,
         }
     }
 
@@ -477,7 +482,7 @@ impl<W: Write> CabDisplay<W> {
                     "{} s  !! withdrawn: {} fault report(s) up to {} s that the monitor's heartbeat does not count (not sent by it); {shown}",
                     time_text(t),
                     reception.withdrawn,
-                    first.map_or_else(|| "-".to_owned(), |(at, _)| time_text(self.rel(at)).trim_start().to_owned())
+                    first.map(|(at, _)| at).or(self.last_report_us).map_or_else(|| "-".to_owned(), |at| time_text(self.rel(at)).trim_start().to_owned())
                 )?;
             }
         }
@@ -500,6 +505,13 @@ impl<W: Write> CabDisplay<W> {
                     reception.unattributed_rejected
                 )?;
             }
+        }
+        if let (Some(step_ms), true) = (reception.relocked_ms, text) {
+            writeln!(
+                self.out,
+                "{} s  !! re-locked: the heartbeat phase stepped {step_ms:+} ms (a clock step of the receiver or a bus latency that began or ended); frames are judged at the new phase",
+                time_text(t)
+            )?;
         }
         if reception.count_corrupt {
             self.summary.corrupt_counts += 1;
@@ -536,6 +548,7 @@ impl<W: Write> CabDisplay<W> {
                 // No live heartbeat vouches for it: shown, never as the current report.
                 self.summary.fault_reports += 1;
                 self.summary.stale_reports += 1;
+                self.last_report_us = Some(time_us);
                 let why = if reception.unattributed {
                     "stale: no heartbeat attributes it yet (after a silence, or a session resting on one frame); the next heartbeat decides"
                         .to_owned()
@@ -560,6 +573,7 @@ impl<W: Write> CabDisplay<W> {
                 }
                 self.held_before.push_back(self.held);
                 self.held = Some((time_us, id));
+                self.last_report_us = Some(time_us);
                 writeln!(self.out, "{}", fault_line(t, id, r))?;
             }
             (Ok(Report::Status(s)), DecodeFormat::Text) => {
