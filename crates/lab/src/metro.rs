@@ -1565,8 +1565,9 @@ fn one_off_events_split(rows: &[MetroRow], split: usize) -> Vec<OneOffEvent> {
     let mut events = Vec::new();
     for (c, &(_, u, n)) in cycles.iter().enumerate() {
         // A window where another cycle is off too is not one cycle's event.
-        let flagged: Vec<bool> =
-            (0..windows).map(|w| big(c, w) && !(0..cycles.len()).any(|o| o != c && same_side(o, c) && big(o, w))).collect();
+        let flagged: Vec<bool> = (0..windows)
+            .map(|w| big(c, w) && !(0..cycles.len()).any(|o| o != c && same_side(o, c) && big(o, w)))
+            .collect();
         let mut w = 0;
         while w < windows {
             if !flagged[w] {
@@ -1719,10 +1720,8 @@ fn decay_slope(rows: &[MetroRow], events: &[OneOffEvent], a: usize, b: usize) ->
         }
         let j = (i..b).find(|&k| in_event(events, k)).unwrap_or(b);
         let n = (j - i) as f64;
-        let (tm, pm) = (
-            rows[i..j].iter().map(|r| r.t_s).sum::<f64>() / n,
-            rows[i..j].iter().map(|r| r.tp3_bar).sum::<f64>() / n,
-        );
+        let (tm, pm) =
+            (rows[i..j].iter().map(|r| r.t_s).sum::<f64>() / n, rows[i..j].iter().map(|r| r.tp3_bar).sum::<f64>() / n);
         for r in &rows[i..j] {
             sxy += (r.t_s - tm) * (r.tp3_bar - pm);
             sxx += (r.t_s - tm).powi(2);
@@ -2682,7 +2681,8 @@ mod tests {
         for seed in [51, 52] {
             let first = synthetic_rows_with(&truth, SYNTHETIC_ROWS, SYNTHETIC_SIGMA_BAR, seed, 0.02);
             let second = synthetic_rows_with(&leaky, SYNTHETIC_ROWS, SYNTHETIC_SIGMA_BAR, seed + 100, 0.02);
-            let cut = (1..first.len()).rev().find(|&i| first[i].loaded && !first[i - 1].loaded).expect("a loading start");
+            let cut =
+                (1..first.len()).rev().find(|&i| first[i].loaded && !first[i - 1].loaded).expect("a loading start");
             let t_join = first[cut].t_s;
             let mut rows = first[..cut].to_vec();
             rows.extend(second.iter().map(|r| MetroRow { t_s: r.t_s + t_join, ..*r }));

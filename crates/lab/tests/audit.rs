@@ -290,3 +290,52 @@ fn a_short_event_is_not_none() {
     let seg = out.missing[0].segments.iter().find(|s| s.t_s.0 <= 12.4 && s.t_s.1 >= 12.0);
     assert!(seg.is_some(), "{}", out.missing[0].description);
 }
+
+/// A third independent plant (`tests/data/independent2`, issue 17): a 2 L volume behind a 0.4 mm
+/// restriction fits a library mechanism at the noise floor (the tester's sets got `laminar_leak`
+/// or `heat_transfer`, by seed). Whatever is named, the verdict must not claim it alone: the
+/// look-alike outside the library is listed with how to tell them apart.
+#[test]
+fn a_second_volume_is_not_named_without_its_look_alike() {
+    let set = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/independent2/second_volume");
+    let (out, skipped) = audit_dir(&set).expect("audit");
+    assert!(skipped.is_empty(), "{skipped}");
+    eprintln!("{}", out.verdict_text());
+    assert_ne!(out.cause, "none", "{}", out.verdict_text());
+    if out.cause.contains("laminar_leak") || out.cause.contains("heat_transfer") {
+        assert!(
+            out.alternatives.iter().any(|a| a.contains("a volume filling through a restriction")),
+            "{}",
+            out.verdict_text()
+        );
+        assert!(out.verdict_text().contains("a long hold at the plateau tells them apart"));
+    }
+}
+
+/// A release cut off before its plateau (the independent tester's 3, 5 and 12 s traces were
+/// `none`, "the base model is consistent", though the phases where a leak shows were missing) is
+/// refused with the reason; the whole release of the same file is audited.
+#[test]
+fn a_release_cut_off_before_its_plateau_is_refused() {
+    let independent = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/independent");
+    let text = std::fs::read_to_string(independent.join("clean_air_leak_0000.csv")).unwrap();
+    for (seconds, refused) in [(3.0, true), (12.0, true), (20.0, true), (f64::INFINITY, false)] {
+        let dir = tempfile::tempdir().unwrap();
+        let kept: String = text
+            .lines()
+            .filter(|l| l.split(',').next().and_then(|t| t.parse::<f64>().ok()).is_none_or(|t| t < seconds))
+            .map(|l| format!("{l}\n"))
+            .collect();
+        std::fs::write(dir.path().join("r.csv"), kept).unwrap();
+        std::fs::write(dir.path().join("manifest.csv"), "file,label,locomotive,split\nr.csv,normal,indep,test\n")
+            .unwrap();
+        match audit_dir(dir.path()) {
+            Err(e) if refused => {
+                let e = format!("{e:#}");
+                assert!(e.contains("release too short to audit"), "{e}");
+            }
+            Ok((out, _)) if !refused => assert_ne!(out.cause, "none", "{}", out.verdict_text()),
+            other => panic!("{seconds} s: {:?}", other.map(|(o, _)| o.verdict_text())),
+        }
+    }
+}
