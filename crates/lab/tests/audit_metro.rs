@@ -284,6 +284,29 @@ fn the_wall_node_is_named_only_where_an_independent_plant_has_one() {
     assert!((w.cooling_s - 1000.0).abs() < 2.0 * ut, "{w:?} ± {ut}");
 }
 
+/// Issue 17: a leak of 0.5 g/s (at 10 bar g) that opens halfway through a record of the
+/// independent plant (at 5000 s) was only `unexplained`, without saying when. The audit reports
+/// a lasting change of consumption, from which cycle, and an interval holding the true instant;
+/// the records of that plant without one get none.
+#[test]
+fn a_lasting_change_of_consumption_is_reported_with_when_it_began() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/metro_independent");
+    let (_, out) = audit_metro_file(&dir.join("step_leak_s33.csv")).expect("audit runs");
+    let change = out.consumption_change.as_ref().unwrap_or_else(|| panic!("{}", out.summary()));
+    assert_eq!(change.shape, pbm_lab::metro::ChangeShape::Step);
+    assert_eq!(change.first_cycle_after, 4, "{change:?}");
+    assert!(change.between_s.0 <= 5000.0 && 5000.0 <= change.between_s.1, "{change:?}");
+    assert!(change.rate_bar_per_min.1 < change.rate_bar_per_min.0 - 0.02, "{change:?}");
+    assert!(out.verdict_text().contains("a lasting change of the air consumption"), "{}", out.verdict_text());
+    assert_eq!(out.to_json()["consumption_change"]["first_cycle_after"], 4);
+    for name in ["nowall_nw1.csv", "nowall_nw3.csv", "nowall_nw8.csv", "wall_w1_s26.csv"] {
+        let (_, out) = audit_metro_file(&dir.join(name)).expect("audit runs");
+        assert_eq!(out.consumption_change, None, "{name}");
+    }
+    let (_, real) = audit_metro_file(Path::new(METRO)).expect("audit runs");
+    assert_eq!(real.consumption_change, None);
+}
+
 /// What the audit cannot judge is refused with the reason (an independent tester's garbage,
 /// planted here in the real record): no compressor switching, fewer than three complete cycles,
 /// a frozen channel, a pressure in the wrong unit or sign.
