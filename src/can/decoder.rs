@@ -496,6 +496,32 @@ pub struct Reception {
     pub relocked_ms: Option<i32>,
 }
 
+impl Reception {
+    /// `result` for a frame of `identity`, with nothing else to say of it (no loss, not stale,
+    /// nothing withdrawn or held): what a stateless check returns, and where
+    /// [`Decoder::receive`] starts.
+    pub fn plain(result: Result<Report, FrameError>, identity: Option<Identity>) -> Self {
+        Self {
+            result,
+            heartbeat_lost_us: None,
+            lost_status: 0,
+            lost_fault_reports: 0,
+            identity,
+            superseded: false,
+            stale: false,
+            withdrawn: 0,
+            restart_jump: 0,
+            count_corrupt: false,
+            early: false,
+            unattributed: false,
+            unattributed_fitting: 0,
+            unattributed_rejected: 0,
+            delayed_stream: false,
+            relocked_ms: None,
+        }
+    }
+}
+
 /// Stream decoder of the monitor's frames.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Decoder {
@@ -587,24 +613,7 @@ impl Decoder {
     /// identifiers, remote frames) come back as errors too, so the caller can count or ignore
     /// them.
     pub fn receive(&mut self, now_us: u64, frame: &impl embedded_can::Frame) -> Reception {
-        let mut rec = Reception {
-            result: Err(FrameError::NoHeartbeat),
-            heartbeat_lost_us: None,
-            lost_status: 0,
-            lost_fault_reports: 0,
-            identity: None,
-            superseded: false,
-            stale: false,
-            withdrawn: 0,
-            restart_jump: 0,
-            count_corrupt: false,
-            early: false,
-            unattributed: false,
-            unattributed_fitting: 0,
-            unattributed_rejected: 0,
-            delayed_stream: false,
-            relocked_ms: None,
-        };
+        let mut rec = Reception::plain(Err(FrameError::NoHeartbeat), None);
         if let Some(mut s) = self.session {
             let silence = now_us.saturating_sub(s.at_us);
             if silence > HEARTBEAT_TIMEOUT_US {

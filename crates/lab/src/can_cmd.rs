@@ -395,24 +395,7 @@ impl<W: Write> CabDisplay<W> {
             }
             Ok(report)
         });
-        pbm::can::Reception {
-            result,
-            heartbeat_lost_us: None,
-            lost_status: 0,
-            lost_fault_reports: 0,
-            identity: Some(self.codec_identity),
-            superseded: false,
-            stale: false,
-            withdrawn: 0,
-            restart_jump: 0,
-            count_corrupt: false,
-            early: false,
-            unattributed: false,
-            unattributed_fitting: 0,
-            unattributed_rejected: 0,
-            delayed_stream: false,
-            relocked_ms: None,
-        }
+        pbm::can::Reception::plain(result, Some(self.codec_identity))
     }
 
     /// Feeds one received frame.
