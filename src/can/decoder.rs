@@ -494,6 +494,18 @@ pub struct Reception {
     /// receiver, or a bus latency that began or ended ([`RELOCK_RUN`] heartbeats in a row at the
     /// new phase; the frames before at the old one were flagged). `None` when not.
     pub relocked_ms: Option<i32>,
+    /// Two streams of this locomotive are on the bus: after a re-lock, heartbeats still
+    /// continue the session from before it at its old phase (a recording running ahead of the
+    /// live monitor re-locked the receiver while two genuine heartbeats were lost, or a second
+    /// path with another latency). A receiver cannot tell which is live: a status frame of the
+    /// old stream is marked so (and judged as before: flagged), and every fault report until
+    /// [`TWO_STREAMS_HOLD_US`] after the last of them is accepted but not current (also
+    /// [`Self::stale`]).
+    pub two_streams: bool,
+    /// This fault report came within a heartbeat period after a re-lock, before a heartbeat at
+    /// the old phase could show a second stream ([`Self::two_streams`]): accepted, not current
+    /// (also [`Self::stale`]).
+    pub relock_unconfirmed: bool,
 }
 
 impl Reception {
@@ -518,6 +530,8 @@ impl Reception {
             unattributed_rejected: 0,
             delayed_stream: false,
             relocked_ms: None,
+            two_streams: false,
+            relock_unconfirmed: false,
         }
     }
 }
@@ -535,7 +549,24 @@ pub struct Decoder {
     /// ([`Reception::unattributed`]): receive time and payload bits.
     unattributed: [(u64, u64); UNATTRIBUTED_MAX],
     unattributed_len: u8,
+    /// The session as it was before the last re-lock, followed at its old phase while
+    /// heartbeats continue it, and until when ([`TWO_STREAMS_HOLD_US`] after the last such
+    /// heartbeat) it is watched: a stream that continues it means two streams of one
+    /// locomotive ([`Reception::two_streams`]).
+    before_relock: Option<(Session, u64)>,
+    /// Until when fault reports are not current because two streams of one locomotive were
+    /// heard ([`Reception::two_streams`]).
+    two_streams_until: u64,
+    /// Until when fault reports after a re-lock are not current: the first heartbeat period
+    /// after it, in which a stream still at the old phase would not have shown yet
+    /// ([`Reception::relock_unconfirmed`]).
+    relock_unconfirmed_until: u64,
 }
+
+/// How long after a re-lock (or after the last heartbeat that continued the session from before
+/// it) the receiver watches for a stream at the old phase, and how long reports stay not current
+/// after such a heartbeat.
+pub const TWO_STREAMS_HOLD_US: u64 = 10_000_000;
 
 impl Default for Decoder {
     fn default() -> Self {
@@ -567,6 +598,9 @@ impl Decoder {
             seen: 0,
             unattributed: [(0, 0); UNATTRIBUTED_MAX],
             unattributed_len: 0,
+            before_relock: None,
+            two_streams_until: 0,
+            relock_unconfirmed_until: 0,
         }
     }
 
@@ -582,7 +616,9 @@ impl Decoder {
 
     /// Whether a report accepted at `accepted_us` is still current at `now_us`: the session is
     /// open, its heartbeat not silent for longer than [`HEARTBEAT_TIMEOUT_US`], no heartbeat
-    /// was overdue when it came or one came since, and no newer fault report was accepted since. A display shows anything else as stale.
+    /// was overdue when it came or one came since, no newer fault report was accepted since, and
+    /// no second stream of the locomotive was heard around it ([`Reception::two_streams`]). A
+    /// display shows anything else as stale.
     pub fn is_current(&self, accepted_us: u64, now_us: u64) -> bool {
         match self.session {
             Some(s) => {
@@ -596,6 +632,10 @@ impl Decoder {
                         < STATUS_PERIOD_US + TOLERANCE_US + late_heartbeat(&s).map_or(0, |l| STATUS_PERIOD_US + l)
                     // Not left out by the last status frame's count (pending: `CountClaim`).
                     && !s.count_claim.is_some_and(|c| c.pending_reports())
+                    // Not accepted before the end of a hold for two streams of the locomotive
+                    // (`Reception::two_streams`).
+                    && accepted_us > self.two_streams_until
+                    && accepted_us > self.relock_unconfirmed_until
             }
             None => false,
         }
@@ -875,6 +915,7 @@ impl Decoder {
 
     /// Accepts a status frame that continues session `s` (`c`: how, from [`continuation`]).
     fn accept_status(&mut self, mut s: Session, now: u64, link: &StatusLink, c: Continues, rec: &mut Reception) {
+        let before = s;
         let d = c.periods;
         // (The heartbeat before this one at its phase was received, flagged: not lost.)
         let received_late = u64::from(late_heartbeat(&s).is_some() && c.phase == Phase::Step);
@@ -988,6 +1029,10 @@ impl Decoder {
             // delayed frame (or the latency fell); it follows.
             Phase::Early { confirmed: true } => {
                 s.off_phase = None;
+                // A stream ahead of the live one moves the clock the same way: watch the old
+                // phase ([`Reception::two_streams`]).
+                self.before_relock = Some((before, now.saturating_add(TWO_STREAMS_HOLD_US)));
+                self.relock_unconfirmed_until = now.saturating_add(STATUS_PERIOD_US + TOLERANCE_US);
                 here
             }
             // One early heartbeat does not move the clock (it may be an outlier or a replay
@@ -1033,6 +1078,14 @@ impl Decoder {
             // A flagged frame moves nothing: what judging it would have withdrawn stays.
             rec.withdrawn = withdrawn_before;
             rec.count_corrupt = false;
+        } else if now <= self.two_streams_until {
+            // Two streams of this locomotive were heard: no report is current until one of them
+            // has been silent for the hold.
+            rec.two_streams = true;
+            rec.stale = true;
+        } else if now <= self.relock_unconfirmed_until {
+            rec.relock_unconfirmed = true;
+            rec.stale = true;
         }
         result
     }
@@ -1565,6 +1618,40 @@ fn phase_run(s: &Session, now: u64, link: &StatusLink) -> Option<(PhaseRun, i64)
     Some((PhaseRun { counter: link.counter, at_us: now, release, count, len }, shift))
 }
 
+impl Decoder {
+    /// After a re-lock: a heartbeat that continues the session from before it, at the old phase
+    /// ([`continuation`]), is a second stream of the locomotive ([`Reception::two_streams`]). The
+    /// old session follows it (so the next one is recognised too) and the watch and the hold
+    /// on fault reports run on from it.
+    fn watch_old_stream(&mut self, now: u64, link: &StatusLink, rec: &mut Reception) {
+        let Some((mut old, until)) = self.before_relock else { return };
+        if now > until {
+            self.before_relock = None;
+            return;
+        }
+        let Some(current) = self.session else { return };
+        // A heartbeat newer than the stream followed now is that stream moving back (a latency
+        // that ended, a flapping gateway): the normal rules take it. A second stream is one
+        // that goes on behind the one followed.
+        let ahead = link.counter.wrapping_sub(current.counter) % COUNTER_MOD;
+        if link.identity.locomotive & 0x3F != old.identity.locomotive || (1..COUNTER_MOD / 2).contains(&ahead) {
+            return;
+        }
+        // On time at the old phase (a stream that moved a little earlier is early there, not
+        // a second stream).
+        if let Some(c) = continuation(&old, now, link).ok().filter(|c| c.phase == Phase::OnTime) {
+            let span = c.periods.saturating_mul(STATUS_PERIOD_US);
+            old.anchor_us = old.anchor_us.saturating_add(i64::try_from(span).unwrap_or(i64::MAX));
+            old.counter = link.counter;
+            old.at_us = now;
+            old.identity.release = link.identity.release & 0x3F;
+            self.before_relock = Some((old, now.saturating_add(TWO_STREAMS_HOLD_US)));
+            self.two_streams_until = now.saturating_add(TWO_STREAMS_HOLD_US);
+            rec.two_streams = true;
+        }
+    }
+}
+
 impl Session {
     /// The session with its clock and every receive time it holds moved by `shift` µs: what it
     /// would have been had the phase been the new one from the start. The latency steps
@@ -1615,6 +1702,7 @@ impl Decoder {
             return self.status(now, bits, rec);
         }
         let link = status_link(bits);
+        self.watch_old_stream(now, &link, rec);
         let loco = link.identity.locomotive & 0x3F;
         let in_lost = self.session.is_none();
         let judged = if in_lost { self.lost } else { self.session };
@@ -1642,6 +1730,10 @@ impl Decoder {
                     }
                     self.accept_status(moved, now, &link, c, rec);
                     rec.relocked_ms = Some(ms(shift));
+                    // The stream at the old phase may go on (a recording ahead of the live
+                    // monitor re-locked the receiver while genuine heartbeats were lost): watch it.
+                    self.before_relock = Some((s, now.saturating_add(TWO_STREAMS_HOLD_US)));
+                    self.relock_unconfirmed_until = now.saturating_add(STATUS_PERIOD_US + TOLERANCE_US);
                     return Ok(report);
                 }
             }

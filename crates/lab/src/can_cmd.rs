@@ -489,6 +489,13 @@ impl<W: Write> CabDisplay<W> {
                 )?;
             }
         }
+        if reception.two_streams && text && matches!(reception.result, Ok(Report::Status(_)) | Err(_)) {
+            writeln!(
+                self.out,
+                "{} s  !! two streams: this heartbeat continues the session from before the re-lock at its old phase (a recording running ahead of the live monitor, or a second path); no fault report is current until one of them stops",
+                time_text(t)
+            )?;
+        }
         if let (Some(step_ms), true) = (reception.relocked_ms, text) {
             writeln!(
                 self.out,
@@ -534,6 +541,12 @@ impl<W: Write> CabDisplay<W> {
                 self.last_report_us = Some(time_us);
                 let why = if reception.unattributed {
                     "stale: no heartbeat attributes it yet (after a silence, or a session resting on one frame); the next heartbeat decides"
+                        .to_owned()
+                } else if reception.relock_unconfirmed {
+                    "not current: the receiver re-locked less than a heartbeat period ago; the next heartbeat shows whether a stream is still at the old phase"
+                        .to_owned()
+                } else if reception.two_streams {
+                    "not current: two streams of this locomotive are on the bus (see the `two streams` line); the receiver cannot tell which is live"
                         .to_owned()
                 } else if reception.delayed_stream {
                     "stale: the stream is delayed beyond the latency step against its first heartbeat".to_owned()

@@ -255,20 +255,36 @@ fn f3_an_old_heartbeat_heard_first_gets_one_live_frame_flagged() {
 // restart was never shown current). The receiver re-locks onto the new phase after
 // `RELOCK_RUN` heartbeats at it (`pbm::can::decoder`, can/README.md "Re-locking").
 
-/// Decodes `name` and returns the outcome and the receive times (µs) at which the session clock
-/// was re-locked, with the step (ms).
+/// Decodes `name` and returns the outcome and the lines at which the session clock was
+/// re-locked, with the step (ms). The fault reports of the heartbeat period after a re-lock are
+/// not current (`Reception::relock_unconfirmed`: a stream still at the old phase would not have
+/// shown yet); they are taken out of the outcome's `stale` after checking that they are exactly
+/// those of that period.
 fn decode_relocks(name: &str) -> (Outcome, Vec<(usize, i32)>) {
     let path = format!("{}/tests/data/can_findings/{name}", env!("CARGO_MANIFEST_DIR"));
     let bytes = std::fs::read(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
     let mut d = Decoder::new();
     let mut relocks = Vec::new();
+    let mut relocked_at = None;
+    let mut unconfirmed = Vec::new();
     for (i, rec) in read_log(&bytes[..]).enumerate() {
         let rec = rec.unwrap_or_else(|e| panic!("{name}: {e:?}"));
-        if let Some(step_ms) = d.receive(rec.time_us, &rec.frame).relocked_ms {
+        let r = d.receive(rec.time_us, &rec.frame);
+        if let Some(step_ms) = r.relocked_ms {
             relocks.push((i + 1, step_ms));
+            relocked_at = Some(rec.time_us);
+        }
+        let within = relocked_at.is_some_and(|at| rec.time_us.saturating_sub(at) <= 1_050_000);
+        // One genuine stream whose phase stepped: never two.
+        assert!(!r.two_streams, "{name}: line {}", i + 1);
+        if r.relock_unconfirmed {
+            assert!(within, "{name}: line {} not current beyond a period after the re-lock", i + 1);
+            unconfirmed.push(i + 1);
         }
     }
-    (decode(name), relocks)
+    let mut o = decode(name);
+    o.stale.retain(|l| !unconfirmed.contains(l));
+    (o, relocks)
 }
 
 /// F1a / F1b / F1c: a logger clock step of −500 ms or +300 ms at 214 s, or a gateway latency
@@ -348,4 +364,54 @@ fn r2_f3_a_withdrawal_names_the_time_of_a_report_shown_stale() {
     assert_eq!(summary.withdrawn, 1, "{text}");
     assert_eq!(withdrawn.len(), 1, "{text}");
     assert!(withdrawn[0].contains("up to 406.950 s"), "{}", withdrawn[0]);
+}
+
+// The third black-box tester of 2026-11-27 (logs `R3_*`, each with a `.tags` file: one letter
+// a frame, `g` genuine, `i` injected): a recording of the same locomotive running ahead of the
+// live monitor, interleaved with it, took the receiver over: by a re-lock while two genuine
+// heartbeats were lost (3 s ahead), or by two early heartbeats with nothing lost (0.36 s ahead),
+// and its old reports were shown current. A heartbeat that continues the session from before
+// the move, on time at the old phase, now shows two streams of the locomotive, and no report is
+// current until one of them has been silent for `TWO_STREAMS_HOLD_US`; the reports of the
+// heartbeat period right after a move are not current either.
+
+/// No report of a recording running ahead of the live monitor is shown current once the second
+/// stream has shown (3 s ahead: none at all). Left: 0.36 s ahead, the stream's first heartbeat is
+/// early by less than half a period, which one early genuine heartbeat also is, and the genuine
+/// heartbeat after it carries the same counter, as a duplicate from a second path does; the
+/// report between the two early heartbeats is shown current (its content here is the genuine
+/// report's, 0.36 s early).
+#[test]
+fn r3_a_recording_running_ahead_of_the_live_monitor_is_never_current() {
+    for (name, current_before_noticed) in
+        [("R3_recording_3s_ahead_two_lost_heartbeats_relocks", 0), ("R3_recording_0.36s_ahead_takes_over", 1)]
+    {
+        let dir = format!("{}/tests/data/can_findings", env!("CARGO_MANIFEST_DIR"));
+        let bytes = std::fs::read(format!("{dir}/{name}.log")).unwrap();
+        let tags = std::fs::read_to_string(format!("{dir}/{name}.tags")).unwrap();
+        let tags: Vec<&str> = tags.lines().collect();
+        assert_eq!(tags.len(), read_log(&bytes[..]).count(), "{name}");
+        let mut d = Decoder::new();
+        let (mut injected_reports, mut two_streams, mut current_early) = (0, 0, 0);
+        for (i, rec) in read_log(&bytes[..]).enumerate() {
+            let rec = rec.unwrap();
+            let r = d.receive(rec.time_us, &rec.frame);
+            two_streams += usize::from(r.two_streams);
+            if tags[i] == "i" && matches!(r.result, Ok(Report::Fault(_))) {
+                injected_reports += 1;
+                if two_streams == 0 && !r.stale {
+                    current_early += 1;
+                } else {
+                    assert!(r.stale, "{name}: line {} (injected) shown current: {r:?}", i + 1);
+                    assert!(!d.is_current(rec.time_us, rec.time_us), "{name}: line {}", i + 1);
+                }
+            }
+        }
+        assert!(two_streams > 0, "{name}: the second stream was never noticed");
+        assert!(
+            current_early <= current_before_noticed,
+            "{name}: {current_early} current before the second stream showed"
+        );
+        eprintln!("{name}: {injected_reports} injected reports accepted, {current_early} current; {two_streams} two-streams frames");
+    }
 }
