@@ -945,14 +945,24 @@ pub struct AlignedRate {
     pub count: usize,
     /// Lowest and highest measured pressure of its intervals, bar.
     pub pressure_bar: (f64, f64),
+    /// A [`ALIGNED_BIN_S`] window of the late part of a phase (after 600 s), scanned beside the
+    /// [`ALIGNED_LATE_BIN_S`] bins so that a short error there is not averaged away (an
+    /// independent tester's 40 g drawn for 60 s at 600 s after every unloading was missing from
+    /// "what is missing"). There are many of them, so one counts at [`ALIGNED_SCAN_SE`].
+    pub scan: bool,
 }
 
 impl AlignedRate {
-    /// Significant at 3 standard errors.
+    /// Significant at 3 standard errors ([`ALIGNED_SCAN_SE`] for a scan window).
     pub fn significant(&self) -> bool {
-        self.count >= 3 && self.mean_bar_per_min.abs() >= 3.0 * self.se_bar_per_min
+        let se = if self.scan { ALIGNED_SCAN_SE } else { 3.0 };
+        self.count >= 3 && self.mean_bar_per_min.abs() >= se * self.se_bar_per_min
     }
 }
+
+/// Standard errors at which a late scan window ([`AlignedRate::scan`]) is significant: a 30 min
+/// decay holds about 25 of them per phase, so 3 SE would be passed by one somewhere by chance.
+pub const ALIGNED_SCAN_SE: f64 = 4.5;
 
 /// The significant bins of `rates` as windows in words, e.g. "an extra outflow from 60 to 180 s
 /// after the compressor unloads (up to 0.022 bar/min)".
@@ -962,8 +972,20 @@ pub fn describe_aligned(rates: &[AlignedRate]) -> String {
             && b.mean_bar_per_min.signum() == a.mean_bar_per_min.signum()
             && (b.from_s - a.from_s - a.width_s).abs() < 1e-9
     };
+    // A scan window inside a significant bin of the same sign says nothing new.
+    let covered = |a: &AlignedRate| {
+        a.scan
+            && rates.iter().any(|b| {
+                !b.scan
+                    && b.significant()
+                    && b.phase == a.phase
+                    && b.mean_bar_per_min.signum() == a.mean_bar_per_min.signum()
+                    && b.from_s <= a.from_s
+                    && a.from_s + a.width_s <= b.from_s + b.width_s
+            })
+    };
     let mut parts = Vec::new();
-    for r in crate::missing_flow::runs(rates, AlignedRate::significant, joins) {
+    for r in crate::missing_flow::runs(rates, |a| a.significant() && !covered(a), joins) {
         let run = &rates[r];
         let (first, last) = (&run[0], &run[run.len() - 1]);
         let peak = run.iter().map(|r| r.mean_bar_per_min.abs()).fold(0.0, f64::max);
@@ -1134,6 +1156,8 @@ pub fn aligned_rate(rows: &[MetroRow], measured: &[f64], curve: &[f64]) -> Vec<A
     };
     // Per bin: the rates and the pressure range they were measured at.
     let mut bins: std::collections::BTreeMap<(u8, usize), (Vec<f64>, f64, f64)> = Default::default();
+    // The late part again in ALIGNED_BIN_S windows ([`AlignedRate::scan`]).
+    let mut scan: std::collections::BTreeMap<(u8, usize), (Vec<f64>, f64, f64)> = Default::default();
     let mut since = f64::NAN;
     for i in 1..rows.len().saturating_sub(1) {
         let (prev, r, next) = (rows[i - 1], rows[i], rows[i + 1]);
@@ -1160,29 +1184,46 @@ pub fn aligned_rate(rows: &[MetroRow], measured: &[f64], curve: &[f64]) -> Vec<A
             e.0.push(rate);
             e.1 = e.1.min(measured[i]);
             e.2 = e.2.max(measured[i]);
+            if r.t_s - since >= 600.0 {
+                let k = ((r.t_s - since - 600.0) / ALIGNED_BIN_S) as usize;
+                let e = scan.entry((u8::from(r.loaded), k)).or_insert((Vec::new(), f64::INFINITY, f64::NEG_INFINITY));
+                e.0.push(rate);
+                e.1 = e.1.min(measured[i]);
+                e.2 = e.2.max(measured[i]);
+            }
         }
     }
-    bins.into_iter()
-        .map(|((loaded, bin), (v, p_min, p_max))| {
-            let n = v.len() as f64;
-            let mean = v.iter().sum::<f64>() / n;
-            let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+    let rate_of = |phase: u8, from_s: f64, width_s: f64, scan: bool, (v, p_min, p_max): (Vec<f64>, f64, f64)| {
+        let n = v.len() as f64;
+        let mean = v.iter().sum::<f64>() / n;
+        let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+        AlignedRate {
+            phase: if phase == 1 { "loaded" } else { "unloaded" },
+            from_s,
+            width_s,
+            mean_bar_per_min: mean,
+            se_bar_per_min: (var / n).sqrt(),
+            count: v.len(),
+            pressure_bar: (p_min, p_max),
+            scan,
+        }
+    };
+    let mut out: Vec<AlignedRate> = bins
+        .into_iter()
+        .map(|((loaded, bin), acc)| {
             let (_, from_s, width_s) = if bin < early {
                 bin_of(bin as f64 * ALIGNED_BIN_S)
             } else {
                 bin_of(600.0 + (bin - early) as f64 * ALIGNED_LATE_BIN_S)
             };
-            AlignedRate {
-                phase: if loaded == 1 { "loaded" } else { "unloaded" },
-                from_s,
-                width_s,
-                mean_bar_per_min: mean,
-                se_bar_per_min: (var / n).sqrt(),
-                count: v.len(),
-                pressure_bar: (p_min, p_max),
-            }
+            rate_of(loaded, from_s, width_s, false, acc)
         })
-        .collect()
+        .collect();
+    out.extend(
+        scan.into_iter()
+            .map(|((loaded, k), acc)| rate_of(loaded, 600.0 + k as f64 * ALIGNED_BIN_S, ALIGNED_BIN_S, true, acc)),
+    );
+    out
 }
 
 /// Residual RMS and bias (measured − model), bar, while the compressor is loaded, in the first
@@ -2339,7 +2380,7 @@ impl MetroOutcome {
             let _ = writeln!(s, "  {}", c.describe());
         }
         let _ = writeln!(s, "what the chosen model misses, by time since the compressor switched (bar/min, ± 1 SE):");
-        for a in &self.missing {
+        for a in self.missing.iter().filter(|a| !a.scan || a.significant()) {
             let _ = writeln!(
                 s,
                 "  {:<8} {:>4.0}–{:<4.0} s  {:+.4} ± {:.4}  ({} intervals){}",
@@ -2485,10 +2526,11 @@ impl MetroOutcome {
         doc["unmodelled_rate"] = serde_json::json!(self
             .missing
             .iter()
+            .filter(|a| !a.scan || a.significant())
             .map(|a| serde_json::json!({
                 "phase": a.phase, "from_s": a.from_s, "width_s": a.width_s,
                 "mean_bar_per_min": a.mean_bar_per_min, "se_bar_per_min": a.se_bar_per_min,
-                "count": a.count, "significant": a.significant(),
+                "count": a.count, "significant": a.significant(), "scan": a.scan,
                 "pressure_bar": [a.pressure_bar.0, a.pressure_bar.1],
             }))
             .collect::<Vec<_>>());

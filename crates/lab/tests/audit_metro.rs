@@ -307,6 +307,27 @@ fn a_lasting_change_of_consumption_is_reported_with_when_it_began() {
     assert_eq!(real.consumption_change, None);
 }
 
+/// Issue 17: 40 g of air drawn for 60 s at 600 s after every unloading (the independent plant)
+/// acts in every cycle, so it is no one-off event; after 600 s the bins of "what is missing" are
+/// 300 s wide and it was averaged away. The late part is scanned in 60 s windows as well.
+#[test]
+fn a_short_recurring_outflow_late_in_the_decay_is_said() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/metro_independent");
+    let (_, out) = audit_metro_file(&dir.join("recurring_event_600s.csv")).expect("audit runs");
+    assert!(out.events.is_empty(), "{:?}", out.events);
+    let window = out
+        .missing
+        .iter()
+        .find(|a| a.scan && a.significant() && a.mean_bar_per_min < 0.0)
+        .unwrap_or_else(|| panic!("{}", out.summary()));
+    assert!((540.0..=660.0).contains(&window.from_s), "{window:?}");
+    assert!(
+        out.verdict_text().contains("an extra outflow from 600 to 660 s after the compressor unloads"),
+        "{}",
+        out.verdict_text()
+    );
+}
+
 /// What the audit cannot judge is refused with the reason (an independent tester's garbage,
 /// planted here in the real record): no compressor switching, fewer than three complete cycles,
 /// a frozen channel, a pressure in the wrong unit or sign.
