@@ -45,6 +45,15 @@
 //! first locked onto re-locks at once. This works on the session the step made time out too,
 //! so the release number the receiver remembers follows the sender.
 //!
+//! A recording of the same locomotive running ahead of the live monitor moves the clock the
+//! same way (a re-lock while two genuine heartbeats are lost, or two early heartbeats). So after
+//! any move the receiver watches the old phase for [`TWO_STREAMS_HOLD_US`]: a heartbeat that
+//! continues the session from before the move, on time there and not newer than the stream
+//! followed, means two streams of the locomotive ([`Reception::two_streams`]), and no fault
+//! report is current until that stream has been silent for the hold; the reports of the
+//! heartbeat period right after a move are not current either
+//! ([`Reception::relock_unconfirmed`]).
+//!
 //! `d − 1` heartbeats were lost ([`Reception::lost_status`]; a fault report that arrives when a
 //! heartbeat is overdue reports it at once); fault reports the sender counted but this receiver
 //! never accepted are reported as lost too ([`Reception::lost_fault_reports`]), except the last
@@ -494,16 +503,17 @@ pub struct Reception {
     /// receiver, or a bus latency that began or ended ([`RELOCK_RUN`] heartbeats in a row at the
     /// new phase; the frames before at the old one were flagged). `None` when not.
     pub relocked_ms: Option<i32>,
-    /// Two streams of this locomotive are on the bus: after a re-lock, heartbeats still
-    /// continue the session from before it at its old phase (a recording running ahead of the
-    /// live monitor re-locked the receiver while two genuine heartbeats were lost, or a second
-    /// path with another latency). A receiver cannot tell which is live: a status frame of the
+    /// Two streams of this locomotive are on the bus: after a move of the session clock (a
+    /// re-lock, or two early heartbeats), heartbeats still continue the session from before it
+    /// on time at its old phase, behind the stream followed (a recording running ahead of the
+    /// live monitor moved the receiver onto it, or a second path with another latency). A receiver cannot tell which is live: a status frame of the
     /// old stream is marked so (and judged as before: flagged), and every fault report until
     /// [`TWO_STREAMS_HOLD_US`] after the last of them is accepted but not current (also
     /// [`Self::stale`]).
     pub two_streams: bool,
-    /// This fault report came within a heartbeat period after a re-lock, before a heartbeat at
-    /// the old phase could show a second stream ([`Self::two_streams`]): accepted, not current
+    /// This fault report came within a heartbeat period after a move of the session clock (a
+    /// re-lock, or two early heartbeats), before a heartbeat at the old phase could show a second
+    /// stream ([`Self::two_streams`]): accepted, not current
     /// (also [`Self::stale`]).
     pub relock_unconfirmed: bool,
 }
@@ -549,7 +559,8 @@ pub struct Decoder {
     /// ([`Reception::unattributed`]): receive time and payload bits.
     unattributed: [(u64, u64); UNATTRIBUTED_MAX],
     unattributed_len: u8,
-    /// The session as it was before the last re-lock, followed at its old phase while
+    /// The session as it was before the last move of its clock (a re-lock, or two early
+    /// heartbeats), followed at its old phase while
     /// heartbeats continue it, and until when ([`TWO_STREAMS_HOLD_US`] after the last such
     /// heartbeat) it is watched: a stream that continues it means two streams of one
     /// locomotive ([`Reception::two_streams`]).
@@ -557,14 +568,14 @@ pub struct Decoder {
     /// Until when fault reports are not current because two streams of one locomotive were
     /// heard ([`Reception::two_streams`]).
     two_streams_until: u64,
-    /// Until when fault reports after a re-lock are not current: the first heartbeat period
-    /// after it, in which a stream still at the old phase would not have shown yet
+    /// Until when fault reports after a move of the session clock are not current: the first
+    /// heartbeat period after it, in which a stream still at the old phase would not have shown yet
     /// ([`Reception::relock_unconfirmed`]).
     relock_unconfirmed_until: u64,
 }
 
-/// How long after a re-lock (or after the last heartbeat that continued the session from before
-/// it) the receiver watches for a stream at the old phase, and how long reports stay not current
+/// How long after a move of the session clock (or after the last heartbeat that continued the
+/// session from before it) the receiver watches for a stream at the old phase, and how long reports stay not current
 /// after such a heartbeat.
 pub const TWO_STREAMS_HOLD_US: u64 = 10_000_000;
 
@@ -1619,8 +1630,9 @@ fn phase_run(s: &Session, now: u64, link: &StatusLink) -> Option<(PhaseRun, i64)
 }
 
 impl Decoder {
-    /// After a re-lock: a heartbeat that continues the session from before it, at the old phase
-    /// ([`continuation`]), is a second stream of the locomotive ([`Reception::two_streams`]). The
+    /// After a move of the session clock: a heartbeat that continues the session from before it,
+    /// on time at the old phase ([`continuation`]) and not newer than the stream followed, is a
+    /// second stream of the locomotive ([`Reception::two_streams`]). The
     /// old session follows it (so the next one is recognised too) and the watch and the hold
     /// on fault reports run on from it.
     fn watch_old_stream(&mut self, now: u64, link: &StatusLink, rec: &mut Reception) {
