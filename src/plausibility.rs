@@ -8,7 +8,7 @@
 //! | check | evidence | why no working sensor does this |
 //! |---|---|---|
 //! | [`SensorFault::Frozen`] / [`SensorFault::Dead`] | the same code [`FROZEN_RUN`] times in a row | the transducer's white noise (σ = 0.01 bar = 3.3 codes, SPEC §5) makes two consecutive codes equal with probability ≈ 0.09; 50 in a row has probability ≈ 10⁻⁵², and even at a third of the specified noise ≈ 10⁻²⁸. *Dead* when no code change was seen since the release command, *frozen* when the signal was live before |
-//! | [`SensorFault::Noisy`] | mean absolute second difference over 1 s above [`NOISY_MEAN_ABS_D2`] | for white noise σ the mean \|x[n] − 2x[n−1] + x[n−2]\| is 1.95 σ, and the pressure's own second difference is below one code except at the knees; the bound is 4 × the transducer's noise |
+//! | [`SensorFault::Noisy`] | mean absolute second difference over 1 s above [`NOISY_MEAN_ABS_D2`] | for white noise σ the mean \|x\[n\] − 2x\[n−1\] + x\[n−2\]\| is 1.95 σ, and the pressure's own second difference is below one code except at the knees; the bound is 4 × the transducer's noise |
 //! | [`SensorFault::Spikes`] | one sample far from both neighbours, in the same direction | the chamber is a first-order pneumatic volume: it cannot jump and come back within 20 ms |
 //! | [`SensorFault::Dropouts`] | an out-of-range reading followed by a valid one | a transducer does not open-circuit for a few samples and recover |
 //! | [`SensorFault::LostResolution`] | the lowest code bit never toggles over [`RESOLUTION_WINDOW`] samples although higher bits do | with 3.3 codes of noise the lowest bit toggles on about half of the samples |
