@@ -1155,9 +1155,11 @@ pub fn aligned_rate(rows: &[MetroRow], measured: &[f64], curve: &[f64]) -> Vec<A
         }
     };
     // Per bin: the rates and the pressure range they were measured at.
-    let mut bins: std::collections::BTreeMap<(u8, usize), (Vec<f64>, f64, f64)> = Default::default();
+    // (phase, bin) → the bin's rates and the pressure range they were measured at.
+    type Bins = std::collections::BTreeMap<(u8, usize), (Vec<f64>, f64, f64)>;
+    let mut bins = Bins::new();
     // The late part again in ALIGNED_BIN_S windows ([`AlignedRate::scan`]).
-    let mut scan: std::collections::BTreeMap<(u8, usize), (Vec<f64>, f64, f64)> = Default::default();
+    let mut scan = Bins::new();
     let mut since = f64::NAN;
     for i in 1..rows.len().saturating_sub(1) {
         let (prev, r, next) = (rows[i - 1], rows[i], rows[i + 1]);
@@ -1176,20 +1178,15 @@ pub fn aligned_rate(rows: &[MetroRow], measured: &[f64], curve: &[f64]) -> Vec<A
         }
         let rate = ((measured[i + 1] - measured[i]) - (m1 - m0)) / dt * 60.0;
         if rate.is_finite() {
-            let e = bins.entry((u8::from(r.loaded), bin_of(r.t_s - since).0)).or_insert((
-                Vec::new(),
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-            ));
-            e.0.push(rate);
-            e.1 = e.1.min(measured[i]);
-            e.2 = e.2.max(measured[i]);
-            if r.t_s - since >= 600.0 {
-                let k = ((r.t_s - since - 600.0) / ALIGNED_BIN_S) as usize;
-                let e = scan.entry((u8::from(r.loaded), k)).or_insert((Vec::new(), f64::INFINITY, f64::NEG_INFINITY));
+            let add = |acc: &mut Bins, key: (u8, usize)| {
+                let e = acc.entry(key).or_insert((Vec::new(), f64::INFINITY, f64::NEG_INFINITY));
                 e.0.push(rate);
                 e.1 = e.1.min(measured[i]);
                 e.2 = e.2.max(measured[i]);
+            };
+            add(&mut bins, (u8::from(r.loaded), bin_of(r.t_s - since).0));
+            if r.t_s - since >= 600.0 {
+                add(&mut scan, (u8::from(r.loaded), ((r.t_s - since - 600.0) / ALIGNED_BIN_S) as usize));
             }
         }
     }
@@ -1813,19 +1810,16 @@ pub fn consumption_change(rows: &[MetroRow], events: &[OneOffEvent]) -> Option<C
         Some((a, b))
     };
     // Every cycle whose window is not all inside one-off events, with its window's rows.
-    let (cycle_of, spans, rates): (Vec<usize>, Vec<(usize, usize)>, Vec<f64>) = cycles
+    // (complete cycle, its window's rows, its rate)
+    let kept: Vec<(usize, (usize, usize), f64)> = cycles
         .iter()
         .enumerate()
         .filter_map(|(c, &(_, u, n))| {
             let (a, b) = in_window(u, n)?;
             Some((c, (a, b), decay_slope(rows, events, a, b)?))
         })
-        .fold((Vec::new(), Vec::new(), Vec::new()), |(mut c, mut s, mut r), (ci, si, ri)| {
-            c.push(ci);
-            s.push(si);
-            r.push(ri);
-            (c, s, r)
-        });
+        .collect();
+    let rates: Vec<f64> = kept.iter().map(|k| k.2).collect();
     if rates.len() < CHANGE_MIN_CYCLES {
         return None;
     }
@@ -1879,7 +1873,10 @@ pub fn consumption_change(rows: &[MetroRow], events: &[OneOffEvent]) -> Option<C
         .collect();
     let spread = (others.iter().map(|d| d * d).sum::<f64>() / (others.len() - 2).max(1) as f64).sqrt();
     let toward = |r: f64, from: f64, to: f64| (r - from) * (to - from).signum() > 3.0 * spread;
-    let window = |c: usize| (rows[spans[c].0].t_s, rows[spans[c].1 - 1].t_s);
+    let window = |c: usize| {
+        let (a, b) = kept[c].1;
+        (rows[a].t_s, rows[b - 1].t_s)
+    };
     let between_s = if toward(rates[k - 1], mean(&before[..k - 1]), ma) {
         window(k - 1)
     } else if toward(rates[k], mean(&after[1..]), mb) {
@@ -1889,7 +1886,7 @@ pub fn consumption_change(rows: &[MetroRow], events: &[OneOffEvent]) -> Option<C
     };
     Some(ConsumptionChange {
         shape: if line_ss < step_ss { ChangeShape::Drift } else { ChangeShape::Step },
-        first_cycle_after: cycle_of[k] + 1,
+        first_cycle_after: kept[k].0 + 1,
         between_s,
         rate_bar_per_min: (mb, ma),
         window_s,
