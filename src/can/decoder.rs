@@ -1040,10 +1040,8 @@ impl Decoder {
             // delayed frame (or the latency fell); it follows.
             Phase::Early { confirmed: true } => {
                 s.off_phase = None;
-                // A stream ahead of the live one moves the clock the same way: watch the old
-                // phase ([`Reception::two_streams`]).
-                self.before_relock = Some((before, now.saturating_add(TWO_STREAMS_HOLD_US)));
-                self.relock_unconfirmed_until = now.saturating_add(STATUS_PERIOD_US + TOLERANCE_US);
+                // A stream ahead of the live one moves the clock the same way.
+                self.watch_after_move(before, now);
                 here
             }
             // One early heartbeat does not move the clock (it may be an outlier or a replay
@@ -1630,6 +1628,14 @@ fn phase_run(s: &Session, now: u64, link: &StatusLink) -> Option<(PhaseRun, i64)
 }
 
 impl Decoder {
+    /// The session clock moved away from `before`'s phase at `now` (a re-lock, or two early
+    /// heartbeats): watch the old phase for a second stream ([`Self::watch_old_stream`]), and
+    /// show no report current for the heartbeat period in which it could not have shown yet.
+    fn watch_after_move(&mut self, before: Session, now: u64) {
+        self.before_relock = Some((before, now.saturating_add(TWO_STREAMS_HOLD_US)));
+        self.relock_unconfirmed_until = now.saturating_add(STATUS_PERIOD_US + TOLERANCE_US);
+    }
+
     /// After a move of the session clock: a heartbeat that continues the session from before it,
     /// on time at the old phase ([`continuation`]) and not newer than the stream followed, is a
     /// second stream of the locomotive ([`Reception::two_streams`]). The
@@ -1743,9 +1749,8 @@ impl Decoder {
                     self.accept_status(moved, now, &link, c, rec);
                     rec.relocked_ms = Some(ms(shift));
                     // The stream at the old phase may go on (a recording ahead of the live
-                    // monitor re-locked the receiver while genuine heartbeats were lost): watch it.
-                    self.before_relock = Some((s, now.saturating_add(TWO_STREAMS_HOLD_US)));
-                    self.relock_unconfirmed_until = now.saturating_add(STATUS_PERIOD_US + TOLERANCE_US);
+                    // monitor re-locked the receiver while genuine heartbeats were lost).
+                    self.watch_after_move(s, now);
                     return Ok(report);
                 }
             }
