@@ -24,7 +24,9 @@
 //!    other key is a warning (stderr and the JSON's `warnings`) and is not used, so a
 //!    `# sensor_supply_v: 5` is never read as a 5 bar supply. A trace that is **no release** is
 //!    refused with its reason (see [`load_dataset`]): shorter than [`MIN_SAMPLES`], a sensor
-//!    fault that destroys the signal ([`signal_destroying_fault`], [`refuses`]), too little
+//!    fault that destroys the signal ([`signal_destroying_fault`], [`refuses`]; an
+//!    `impossible_rate` drop that the pressure comes back from is the chamber's, not the
+//!    transducer's: [`chamber_drop`], audited with a warning), too little
 //!    pressure rise ([`required_rise_bar`], [`MIN_RISE_BAR`]), or cut off before the plateau
 //!    ([`required_samples`]). Releases of one configuration have the same noise-free
 //!    response, so each group is fitted through its *mean* trace (noise σ/√n). The noise σ of
@@ -409,7 +411,7 @@ pub fn refuses(fault: SensorFault, raw_adc: bool) -> bool {
 /// Reads a SPEC §7 data set for the audit; a trace that cannot be used (unreadable, not at
 /// 100 Hz, not starting at the release command, shorter than [`MIN_SAMPLES`], a documented
 /// configuration out of range) or that is no release (a sensor fault that destroys the signal,
-/// see [`signal_destroying_fault`]; a pressure rise below [`required_rise_bar`]; cut off before
+/// see [`signal_destroying_fault`], but not a [`ChamberDrop`]; a pressure rise below [`required_rise_bar`]; cut off before
 /// the plateau, [`required_samples`]) is skipped with its
 /// reason, and the others are audited; none left is an error. Metadata keys that are neither
 /// configuration nor information are warnings in [`AuditData::warnings`].
@@ -420,7 +422,8 @@ pub fn load_dataset(dir: &Path) -> Result<(AuditData, Skipped)> {
     let mut skipped = Skipped::of(data.refused());
     for row in data.rows() {
         match audit_trace(&data, row) {
-            Ok((config, p, unknown)) => {
+            Ok((config, p, unknown, drop)) => {
+                warnings.extend(drop.map(|d| format!("{}: {d}", row.file)));
                 warnings.extend(unknown.iter().map(|k| {
                     format!(
                         "{}: metadata key `{k}` is not a configuration key ({}); ignored",
@@ -441,9 +444,13 @@ pub fn load_dataset(dir: &Path) -> Result<(AuditData, Skipped)> {
     Ok((audit_data, skipped))
 }
 
-/// One data set trace as the audit uses it: its documented configuration, pressures and the
-/// unknown metadata keys.
-fn audit_trace(data: &Dataset, row: &ManifestRow) -> Result<(TwinParams, Vec<f64>, Vec<String>), FileError> {
+/// One data set trace as the audit uses it: its documented configuration, pressures, the
+/// unknown metadata keys and a sudden drop of the chamber pressure that the core's transducer
+/// check took for a sensor fault ([`ChamberDrop`]).
+type AuditTrace = (TwinParams, Vec<f64>, Vec<String>, Option<ChamberDrop>);
+
+/// One data set trace as the audit uses it ([`AuditTrace`]).
+fn audit_trace(data: &Dataset, row: &ManifestRow) -> Result<AuditTrace, FileError> {
     // `Dataset::read_trace` has checked the 100 Hz clock.
     let tr = data.read_trace(row)?;
     let name = &tr.source;
@@ -454,8 +461,12 @@ fn audit_trace(data: &Dataset, row: &ManifestRow) -> Result<(TwinParams, Vec<f64
         return Err(FileError::new(name, 0, format!("only {} samples; the audit needs ≥ 2 s at 100 Hz", tr.t_s.len())));
     }
     let (config, unknown) = config_from_meta(&tr.metadata).map_err(|e| FileError::new(name, 0, format!("{e:#}")))?;
+    let mut drop = None;
     match signal_destroying_fault(&tr) {
         Err(e) => return Err(FileError::new(name, 0, format!("{e:#}"))),
+        Ok(Some((i, SensorFault::ImpossibleRate))) if chamber_drop(&tr.pressures_bar(), i, &config).is_some() => {
+            drop = chamber_drop(&tr.pressures_bar(), i, &config);
+        }
         Ok(Some((i, fault))) => {
             return Err(FileError::new(
                 name,
@@ -502,7 +513,77 @@ fn audit_trace(data: &Dataset, row: &ManifestRow) -> Result<(TwinParams, Vec<f64
             ),
         ));
     }
-    Ok((config, p, unknown))
+    Ok((config, p, unknown, drop))
+}
+
+/// A sudden drop of the chamber pressure during the rise that the pressure comes back from: the
+/// core's transducer check calls it `impossible_rate` (a step that stays), but a transducer that
+/// stepped would still read low at the plateau. A piston that sticks and breaks free (stick-slip)
+/// does this: an independent tester's plant, whose 16 releases were all refused as sensor
+/// faults. The release is audited, the drop is said.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ChamberDrop {
+    /// When the pressure drops, s after the release command.
+    pub t_s: f64,
+    /// How far it drops, bar.
+    pub drop_bar: f64,
+    /// How far the plateau (the last [`PLATEAU_MIN_S`]) lies from the documented twin's, bar.
+    pub plateau_offset_bar: f64,
+}
+
+impl core::fmt::Display for ChamberDrop {
+    fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+        write!(
+            f,
+            "the pressure drops {:.2} bar at t = {:.2} s, faster than any orifice vents, and comes back: its plateau \
+             is {:+.2} bar from the documented twin's. The core's transducer check calls that a sensor fault \
+             (`impossible_rate`), but a transducer that stepped would still read {:.2} bar low at the plateau: the \
+             chamber pressure itself dropped (a piston that sticks and breaks free, or another sudden volume \
+             change; outside the library). The release is audited with the drop in it.",
+            self.drop_bar, self.t_s, self.plateau_offset_bar, self.drop_bar
+        )
+    }
+}
+
+/// Samples either side of the core's onset searched for the drop (the rate check reports the
+/// start of its 0.1 s span, the step check the sample after the jump).
+const DROP_SEARCH: usize = 15;
+
+/// The [`ChamberDrop`] at the core's `impossible_rate` onset `at` of pressures `p` (bar g, 100
+/// Hz), if it is one: the largest fall over 5 samples near `at` is ≥ 6 σ of a difference of two
+/// samples ([`noise_sigma`]) and ≥ 0.05 bar; no sample-to-sample rise anywhere departs upwards
+/// from the median of the 10 before it by half the fall or 6 σ, whichever is more (a transducer
+/// stepping back up: no orifice fills that fast); and the plateau lies within half the fall of the
+/// documented `config`'s twin (a transducer step that stays would put it a whole fall low).
+pub fn chamber_drop(p: &[f64], at: usize, config: &TwinParams) -> Option<ChamberDrop> {
+    const SPAN: usize = 5;
+    let n = p.len();
+    let plateau = (PLATEAU_MIN_S / SAMPLE_PERIOD_S) as usize;
+    if n < 2 * plateau || at >= n {
+        return None;
+    }
+    let sigma_d = noise_sigma(p) * 2f64.sqrt();
+    let lo = at.saturating_sub(DROP_SEARCH);
+    let hi = (at + DROP_SEARCH).min(n - 1 - SPAN);
+    let (i, fall) = (lo..=hi).map(|i| (i, p[i] - p[i + SPAN])).max_by(|a, b| a.1.total_cmp(&b.1))?;
+    // NaN pressures (refused later by the loader) are no drop.
+    if fall.is_nan() || fall < (6.0 * sigma_d).max(0.05) {
+        return None;
+    }
+    let d: Vec<f64> = p.windows(2).map(|w| w[1] - w[0]).collect();
+    let step_up = (fall / 2.0).max(6.0 * sigma_d);
+    let steps_up = (10..d.len()).any(|k| d[k] - median(&mut d[k - 10..k].to_vec()) > step_up);
+    if steps_up {
+        return None;
+    }
+    let (twin, _) = twin_trace(config, n)?;
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let offset = mean(&p[n - plateau..]) - mean(&twin[n - plateau..]);
+    (offset.abs() < fall / 2.0).then_some(ChamberDrop {
+        t_s: i as f64 * SAMPLE_PERIOD_S,
+        drop_bar: fall,
+        plateau_offset_bar: offset,
+    })
 }
 
 /// Seconds of plateau after the documented twin has settled that a release must hold
