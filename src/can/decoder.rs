@@ -54,6 +54,16 @@
 //! heartbeat period right after a move are not current either
 //! ([`Reception::relock_unconfirmed`]).
 //!
+//! A frame stamped more than [`HEARTBEAT_TIMEOUT_US`] after every frame before it ends a silence
+//! of the receive clock; the receiver keeps its state from before that frame for
+//! [`TWO_STREAMS_HOLD_US`] of the new time. A frame stamped more than [`CLOCK_BACK_SLACK_US`]
+//! before it within that time shows that the stamps since the silence were wrong (a logger whose
+//! clock glitched ahead for a frame or a few) or that the receive clock went back: the receiver
+//! returns to its state before them and judges the frame from there
+//! ([`Reception::clock_back_us`]). Without it, one heartbeat stamped 4096 s ahead (its 12-bit
+//! counter then fits) was taken as the end of a silence, and every genuine frame after it was
+//! flagged as a flood to the end of the log.
+//!
 //! `d − 1` heartbeats were lost ([`Reception::lost_status`]; a fault report that arrives when a
 //! heartbeat is overdue reports it at once); fault reports the sender counted but this receiver
 //! never accepted are reported as lost too ([`Reception::lost_fault_reports`]), except the last
@@ -516,6 +526,17 @@ pub struct Reception {
     /// stream ([`Self::two_streams`]): accepted, not current
     /// (also [`Self::stale`]).
     pub relock_unconfirmed: bool,
+    /// This frame ended a silence of the receive clock (stamped more than
+    /// [`HEARTBEAT_TIMEOUT_US`] after every frame before it): the receiver keeps its state from
+    /// before it for [`TWO_STREAMS_HOLD_US`], so that a display can keep what it showed then too
+    /// ([`Self::clock_back_us`]).
+    pub clock_jumped: bool,
+    /// `Some(µs)`: this frame is stamped that much before the frame that ended the last silence
+    /// of the receive clock, within [`TWO_STREAMS_HOLD_US`] of it: the stamps since the silence
+    /// were wrong (a logger glitch) or the receive clock went back. The receiver returned to its
+    /// state before that frame and judged this one from there; what it accepted since is
+    /// undone, and a display goes back to what it showed before the silence.
+    pub clock_back_us: Option<u64>,
 }
 
 impl Reception {
@@ -542,6 +563,8 @@ impl Reception {
             relocked_ms: None,
             two_streams: false,
             relock_unconfirmed: false,
+            clock_jumped: false,
+            clock_back_us: None,
         }
     }
 }
@@ -572,7 +595,32 @@ pub struct Decoder {
     /// heartbeat period after it, in which a stream still at the old phase would not have shown yet
     /// ([`Reception::relock_unconfirmed`]).
     relock_unconfirmed_until: u64,
+    /// The newest receive stamp of any frame, µs (0 before the first).
+    newest_us: u64,
+    /// The receiver's state before the frame that ended the last silence of the receive clock,
+    /// and that frame's stamp ([`Reception::clock_back_us`]).
+    before_jump: Option<(Snapshot, u64)>,
 }
+
+/// Everything a [`Decoder`] knows except its own [`Decoder::before_jump`]: what a frame stamped
+/// before a jump of the receive clock is judged against.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Snapshot {
+    session: Option<Session>,
+    lost: Option<Session>,
+    newest_release: [u8; 64],
+    seen: u64,
+    unattributed: [(u64, u64); UNATTRIBUTED_MAX],
+    unattributed_len: u8,
+    before_relock: Option<(Session, u64)>,
+    two_streams_until: u64,
+    relock_unconfirmed_until: u64,
+    newest_us: u64,
+}
+
+/// How far before the frame that ended a silence of the receive clock a frame must be stamped to
+/// show that clock wrong ([`Reception::clock_back_us`]): more than any reordering of a log.
+pub const CLOCK_BACK_SLACK_US: u64 = 1_000_000;
 
 /// How long after a move of the session clock (or after the last heartbeat that continued the
 /// session from before it) the receiver watches for a stream at the old phase, and how long reports stay not current
@@ -612,7 +660,85 @@ impl Decoder {
             before_relock: None,
             two_streams_until: 0,
             relock_unconfirmed_until: 0,
+            newest_us: 0,
+            before_jump: None,
         }
+    }
+
+    /// The state a frame stamped before a jump of the receive clock is judged against.
+    fn snapshot(&self) -> Snapshot {
+        // Destructured, so that a new field cannot be left out.
+        let Self {
+            session,
+            lost,
+            newest_release,
+            seen,
+            unattributed,
+            unattributed_len,
+            before_relock,
+            two_streams_until,
+            relock_unconfirmed_until,
+            newest_us,
+            before_jump: _,
+        } = *self;
+        Snapshot {
+            session,
+            lost,
+            newest_release,
+            seen,
+            unattributed,
+            unattributed_len,
+            before_relock,
+            two_streams_until,
+            relock_unconfirmed_until,
+            newest_us,
+        }
+    }
+
+    /// Returns to `snap` (and forgets the jump).
+    fn restore(&mut self, snap: Snapshot) {
+        let Snapshot {
+            session,
+            lost,
+            newest_release,
+            seen,
+            unattributed,
+            unattributed_len,
+            before_relock,
+            two_streams_until,
+            relock_unconfirmed_until,
+            newest_us,
+        } = snap;
+        *self = Self {
+            session,
+            lost,
+            newest_release,
+            seen,
+            unattributed,
+            unattributed_len,
+            before_relock,
+            two_streams_until,
+            relock_unconfirmed_until,
+            newest_us,
+            before_jump: None,
+        };
+    }
+
+    /// The receive clock's jumps ([`Reception::clock_jumped`], [`Reception::clock_back_us`]).
+    fn follow_receive_clock(&mut self, now_us: u64, rec: &mut Reception) {
+        if let Some((snap, jump_us)) = self.before_jump.take() {
+            if now_us.saturating_add(CLOCK_BACK_SLACK_US) < jump_us {
+                self.restore(snap);
+                rec.clock_back_us = Some(jump_us - now_us);
+            } else if now_us <= jump_us.saturating_add(TWO_STREAMS_HOLD_US) {
+                self.before_jump = Some((snap, jump_us));
+            }
+        }
+        if self.newest_us > 0 && now_us > self.newest_us.saturating_add(HEARTBEAT_TIMEOUT_US) {
+            self.before_jump = Some((self.snapshot(), now_us));
+            rec.clock_jumped = true;
+        }
+        self.newest_us = self.newest_us.max(now_us);
     }
 
     /// Forgets everything (for example after a bus-off of the receiver).
@@ -665,6 +791,7 @@ impl Decoder {
     /// them.
     pub fn receive(&mut self, now_us: u64, frame: &impl embedded_can::Frame) -> Reception {
         let mut rec = Reception::plain(Err(FrameError::NoHeartbeat), None);
+        self.follow_receive_clock(now_us, &mut rec);
         if let Some(mut s) = self.session {
             let silence = now_us.saturating_sub(s.at_us);
             if silence > HEARTBEAT_TIMEOUT_US {

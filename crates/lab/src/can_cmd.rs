@@ -347,7 +347,15 @@ pub struct CabDisplay<W: Write> {
     /// Receive time of the last fault report accepted, shown stale or not (what a withdrawal
     /// names when the withdrawn report was shown stale and never held).
     last_report_us: Option<u64>,
+    /// What the display held, and the losses counted, when the receive clock last jumped ahead
+    /// ([`pbm::can::Reception::clock_jumped`]): back when the decoder undoes the jump.
+    held_at_jump: Option<AtJump>,
 }
+
+/// The report held on the display, what was held before each of the last ones, and the lost
+/// (status frames, fault reports, heartbeats) counted.
+type AtJump =
+    (Option<(u64, Option<Identity>)>, std::collections::VecDeque<Option<(u64, Option<Identity>)>>, (u64, u64, u64));
 
 impl<W: Write> CabDisplay<W> {
     /// A display printing to `out`.
@@ -364,6 +372,7 @@ impl<W: Write> CabDisplay<W> {
             held: None,
             held_before: std::collections::VecDeque::new(),
             last_report_us: None,
+            held_at_jump: None,
         }
     }
 
@@ -408,6 +417,26 @@ impl<W: Write> CabDisplay<W> {
         let count = payload.filter(|(k, _)| *k == MessageKind::Status).map(|(_, bits)| status_link(bits).fault_count);
         let reception = if self.codec_only { self.codec_decode(frame) } else { self.decoder.receive(time_us, frame) };
         let text = self.format == DecodeFormat::Text;
+        if let Some(back_us) = reception.clock_back_us {
+            *self.summary.flagged.entry("clock_back").or_default() += 1;
+            if let Some((held, before, lost)) = self.held_at_jump.take() {
+                (self.held, self.held_before) = (held, before);
+                // The losses the jump claimed were none.
+                (self.summary.lost_status, self.summary.lost_fault_reports, self.summary.heartbeat_losses) = lost;
+            }
+            if text {
+                writeln!(
+                    self.out,
+                    "{} s  !! clock_back: this frame is stamped {:.3} s before the frame that ended the last silence: the stamps since were wrong (a logger glitch) or the receive clock went back; what was accepted since is undone, and frames are judged as before the silence",
+                    time_text(t),
+                    back_us as f64 / 1e6
+                )?;
+            }
+        }
+        if reception.clock_jumped {
+            let lost = (self.summary.lost_status, self.summary.lost_fault_reports, self.summary.heartbeat_losses);
+            self.held_at_jump = Some((self.held, self.held_before.clone(), lost));
+        }
         if let Some(silence_us) = reception.heartbeat_lost_us {
             self.summary.heartbeat_losses += 1;
             if text {

@@ -415,3 +415,34 @@ fn r3_a_recording_running_ahead_of_the_live_monitor_is_never_current() {
         eprintln!("{name}: {injected_reports} injected reports accepted, {current_early} current; {two_streams} two-streams frames");
     }
 }
+
+/// Fourth black-box attacker, M1: a logger stamps one heartbeat 4096 s (its 12-bit counter then
+/// fits) or 10⁸ s ahead. It was taken as the end of a silence, and every genuine frame after it
+/// was flagged (`rate_exceeded`, 611 of them to the end of the log). The next frame, stamped
+/// before it, now shows the stamp wrong: the receiver returns to its state before it
+/// (`Reception::clock_back_us`) and no genuine frame is rejected.
+#[test]
+fn r4_a_heartbeat_stamped_far_ahead_does_not_lock_out_the_genuine_frames_after_it() {
+    for name in ["R4_heartbeat_stamped_4096s_ahead_locks_out", "R4_heartbeat_stamped_1e8s_ahead"] {
+        let dir = format!("{}/tests/data/can_findings", env!("CARGO_MANIFEST_DIR"));
+        let bytes = std::fs::read(format!("{dir}/{name}.log")).unwrap();
+        let tags = std::fs::read_to_string(format!("{dir}/{name}.tags")).unwrap();
+        let tags: Vec<&str> = tags.lines().collect();
+        assert_eq!(tags.len(), read_log(&bytes[..]).count(), "{name}");
+        let mut d = Decoder::new();
+        let (mut back, mut genuine, mut current) = (0, 0, 0);
+        for (i, rec) in read_log(&bytes[..]).enumerate() {
+            let rec = rec.unwrap();
+            let r = d.receive(rec.time_us, &rec.frame);
+            back += usize::from(r.clock_back_us.is_some());
+            if tags[i] == "g" {
+                genuine += 1;
+                assert!(r.result.is_ok(), "{name}: line {} (genuine) rejected: {r:?}", i + 1);
+                current +=
+                    usize::from(matches!(r.result, Ok(Report::Fault(_))) && d.is_current(rec.time_us, rec.time_us));
+            }
+        }
+        assert_eq!(back, 1, "{name}: the wrong stamp is said once");
+        assert!(current > 400, "{name}: {current} genuine reports current of {genuine} genuine frames");
+    }
+}
