@@ -30,7 +30,9 @@
 //!
 //! The session clock (when the next heartbeat is due) is the earliest receive time the
 //! accepted heartbeats imply; one early heartbeat does not move it, the next one early the
-//! same way does. A late heartbeat is flagged, but its phase is kept: when the next one is
+//! same way does. A heartbeat late within the tolerance moves it to itself while the session's
+//! lag stays within [`MAX_LATENCY_STEP_US`] (a latency that wanders slowly is followed), and the
+//! release start of the reports of the release under way moves with it. A late heartbeat is flagged, but its phase is kept: when the next one is
 //! late the same way the latency rose (a latency step) and the clock follows, up to
 //! [`MAX_LATENCY_STEP_US`] after the earliest phase. A sender that restarts before its
 //! heartbeat times out (a newer release number, a counter not above the time since the last
@@ -256,8 +258,9 @@ struct Session {
     counter: u16,
     at_us: u64,
     /// When a frame with `counter` was due: the earliest receive time the accepted frames
-    /// imply (a frame that arrives early moves it earlier, a late one by clock drift only),
-    /// so a delayed frame cannot pull the session's clock after it.
+    /// imply (a frame that arrives early moves it earlier; a late one within the tolerance
+    /// moves it later only while the session's lag stays within the latency step followed,
+    /// so a delayed frame cannot pull the session's clock further after it).
     anchor_us: i64,
     /// Receive time of the first accepted status frame with this release number.
     release_since_us: u64,
@@ -1158,10 +1161,21 @@ impl Decoder {
         let creep = i64::try_from(drift(span)).unwrap_or(i64::MAX);
         let here = diff(now, 0);
         let anchor = match c.phase {
-            // Within the tolerance: the earliest receive time the frames imply.
+            // Within the tolerance: the earliest receive time the frames imply — or, late within
+            // it, this heartbeat's, while the session's lag stays within the latency step
+            // followed: a latency that wanders slowly (a gateway whose queue fills and drains)
+            // is followed heartbeat by heartbeat instead of being flagged each time it has
+            // moved by the tolerance (fourth black-box attacker: 3–4 genuine heartbeats per cycle
+            // of a 0–240 ms wander). One late heartbeat moves the clock by less than the
+            // tolerance, and the next on time moves it back.
             Phase::OnTime => {
                 s.off_phase = None;
-                here.min(due.saturating_add(creep))
+                let late = here.saturating_sub(due);
+                if late > 0 && s.lag_us.saturating_add(late) <= MAX_LATENCY_STEP_US as i64 {
+                    here
+                } else {
+                    here.min(due.saturating_add(creep))
+                }
             }
             // Early, and the heartbeat before was early the same way: the clock was set by a
             // delayed frame (or the latency fell); it follows.
@@ -1184,6 +1198,14 @@ impl Decoder {
             }
         };
         let moved = anchor.saturating_sub(due);
+        if c.phase == Phase::OnTime {
+            // The reports of the release under way come through the same path: their release
+            // start follows the heartbeat clock (a slowly wandering latency had them flagged
+            // `untimely` each time it had moved by the tolerance).
+            if let Some(f) = s.fault.as_mut().filter(|f| f.release == s.identity.release) {
+                f.start_us = f.start_us.saturating_add(moved);
+            }
+        }
         s.lag_us = s.lag_us.saturating_add(moved).max(0);
         s.anchor_us = anchor;
         s.counter = link.counter;

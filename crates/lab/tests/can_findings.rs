@@ -446,3 +446,26 @@ fn r4_a_heartbeat_stamped_far_ahead_does_not_lock_out_the_genuine_frames_after_i
         assert!(current > 400, "{name}: {current} genuine reports current of {genuine} genuine frames");
     }
 }
+
+/// Fourth black-box attacker, L1: a gateway latency that wanders slowly between 0 and 240 ms
+/// (a sine of 29 s; every frame genuine, in order). The session clock only followed a late
+/// phase after two heartbeats agreed on it, so 44 heartbeats were flagged `untimely` (and the
+/// reports of the release under way after them). The clock now follows a heartbeat late within
+/// the tolerance while the session's lag stays within the latency step, and the release start
+/// of the reports follows it: nothing is flagged.
+#[test]
+fn r4_a_slowly_wandering_latency_is_followed_without_flagging_genuine_frames() {
+    let recs = records("R4_gateway_latency_wandering_0_240ms.log");
+    let mut d = Decoder::new();
+    let (mut reports, mut current) = (0, 0);
+    for (i, (t, frame)) in recs.iter().enumerate() {
+        let r = d.receive(*t, frame);
+        assert!(r.result.is_ok(), "line {} (genuine) rejected: {r:?}", i + 1);
+        assert_eq!(r.lost_status + u16::from(r.lost_fault_reports), 0, "line {}: a loss claimed", i + 1);
+        if matches!(r.result, Ok(Report::Fault(_))) {
+            reports += 1;
+            current += usize::from(d.is_current(*t, *t));
+        }
+    }
+    assert!(current + 2 >= reports, "{current} of {reports} reports current");
+}
