@@ -27,7 +27,8 @@
 //!    fault that destroys the signal ([`signal_destroying_fault`], [`refuses`]; an
 //!    `impossible_rate` drop that the pressure comes back from is the chamber's, not the
 //!    transducer's: [`chamber_drop`], audited with a warning), too little
-//!    pressure rise ([`required_rise_bar`], [`MIN_RISE_BAR`]), or cut off before the plateau
+//!    pressure rise ([`required_rise_bar`], [`MIN_RISE_BAR`]), a chamber not vented at the
+//!    release command ([`START_MAX_BAR`]), or cut off before the plateau
 //!    ([`required_samples`]). Releases of one configuration have the same noise-free
 //!    response, so each group is fitted through its *mean* trace (noise σ/√n). The noise σ of
 //!    every trace is estimated from the data (MAD of second differences), never assumed.
@@ -54,7 +55,7 @@
 //!    so a second mechanism is only named when it is really needed. ≈ 3 000 twin runs, a few
 //!    seconds on two cores.
 //! 5. **Base parameters beyond tolerance** ([`WIDE_PARAMETERS`]: dead volume, discharge
-//!    coefficient, spring preload, friction): each is refitted alone with its box widened to a
+//!    coefficient, spring preload, spring rate, friction): each is refitted alone with its box widened to a
 //!    physically possible range, as an explanation of its own (a wrong or worn part rather than
 //!    a missing mechanism), counted as one more parameter.
 //! 6. **Decision**: BIC with unknown noise scale, ΔBIC = n_eff ln(RSS_base/RSS) − Δk ln n_eff,
@@ -147,7 +148,7 @@ pub struct WideParameter {
 
 /// The base parameters an audit also tries beyond tolerance: each replaces its ± 5.5 % box by
 /// a physically possible range and counts as one more parameter.
-pub const WIDE_PARAMETERS: [WideParameter; 4] = [
+pub const WIDE_PARAMETERS: [WideParameter; 5] = [
     WideParameter {
         index: 1,
         name: "dead_volume",
@@ -165,6 +166,13 @@ pub const WIDE_PARAMETERS: [WideParameter; 4] = [
         name: "spring_preload",
         spread: 0.5,
         description: "the spring preload (a weak, broken or wrong spring)",
+    },
+    WideParameter {
+        index: 3,
+        name: "spring_rate",
+        spread: 0.5,
+        description: "the spring rate (a fatigued, broken or wrong spring; a fourth independent tester's spring \
+                      at 0.6–0.9 × its rate had been named a progressive spring with a negative ratio)",
     },
     WideParameter { index: 4, name: "friction", spread: 0.9, description: "the piston friction (worn or dry seals)" },
 ];
@@ -484,6 +492,19 @@ fn audit_trace(data: &Dataset, row: &ManifestRow) -> Result<AuditTrace, FileErro
     if p.iter().any(|v| !v.is_finite()) {
         return Err(FileError::new(name, 0, "a pressure is NaN or infinite"));
     }
+    let mut first = p[..p.len().min(3)].to_vec();
+    let start = median(&mut first);
+    if start > START_MAX_BAR {
+        return Err(FileError::new(
+            name,
+            0,
+            format!(
+                "no release from a vented chamber: the pressure reads {start:.2} bar g at the release command; a \
+                 release starts from the applied brake at atmosphere (the audit's sensor offsets reach ± 0.5 bar), \
+                 so this is a chamber not vented before the command or a transducer offset beyond any the audit models"
+            ),
+        ));
+    }
     let rise = pressure_rise_bar(&p);
     let (required, twin_rise) = required_rise_bar(&config, p.len());
     if rise < required {
@@ -585,6 +606,12 @@ pub fn chamber_drop(p: &[f64], at: usize, config: &TwinParams) -> Option<Chamber
         plateau_offset_bar: offset,
     })
 }
+
+/// Highest reading at the release command (median of the first three samples), bar g: the
+/// audit's largest sensor offset (0.5 bar) plus what the fastest orifice fills in 20 ms. A
+/// fourth independent tester's release from a chamber left at 3 bar g had been audited and
+/// answered with a dead volume of 0.16 ± 0.09 × documented.
+pub const START_MAX_BAR: f64 = 0.75;
 
 /// Seconds of plateau after the documented twin has settled that a release must hold
 /// ([`required_samples`]).
@@ -703,10 +730,40 @@ fn at_bound_flag(effect: Mechanism, u: f64) -> Option<String> {
 
 /// Why magnitude `v` of `effect` is physically incredible although the search allows it (the
 /// search is wide so that degenerate directions can be followed): supply air colder than
-/// −40 °C.
+/// −40 °C. Along the Cf–T direction a discharge coefficient is then named instead, and the
+/// temperature is listed as its look-alike ([`discharge_coefficient_look_alikes`]).
 fn physically_incredible(effect: Mechanism, v: f64) -> Option<String> {
     (effect == Mechanism::GasTemperature && v < GAS_TEMPERATURE_CREDIBLE_K)
         .then(|| format!("{effect} = {v:.0} K is supply air colder than {:.0} °C", GAS_TEMPERATURE_CREDIBLE_K - 273.15))
+}
+
+/// What a discharge coefficient beyond tolerance, `scale` × documented, cannot be told from:
+/// every orifice flow scales with Cf · A · √T (without heat transfer), so the same fit is an
+/// orifice of another area (a partly blocked or wrong orifice: a fourth independent tester's
+/// 1.15 and 1.0 mm orifices documented as 1.25 mm were named Cf 0.84 and 0.64 with nothing
+/// said of the orifice) or air of another temperature (its −40 °C brake was named Cf 0.885).
+fn discharge_coefficient_look_alikes(scale: f64, orifice_mm: f64) -> Vec<String> {
+    let t = Mechanism::GasTemperature.off() * scale * scale;
+    let cold = if t < GAS_TEMPERATURE_CREDIBLE_K {
+        format!(", colder than {:.0} °C", GAS_TEMPERATURE_CREDIBLE_K - 273.15)
+    } else {
+        String::new()
+    };
+    let mut alike = vec![format!(
+        "an orifice of {:.2} mm where {orifice_mm:.2} mm is documented (partly blocked, or another part: the flow \
+             scales with Cf × area, so the data cannot tell the two apart)",
+        orifice_mm * scale.sqrt()
+    )];
+    // Air far colder than any service temperature, or hotter than the library's search, is no
+    // look-alike worth a line.
+    if (GAS_TEMPERATURE_CREDIBLE_K - 10.0..=Mechanism::GasTemperature.descriptor().brake.search.1).contains(&t) {
+        alike.push(format!(
+            "air at {t:.0} K ({:.0} °C{cold}) through the documented orifice (the flow scales with Cf × √T: a cold \
+             brake, or hot air from the compressor)",
+            t - 273.15
+        ));
+    }
+    alike
 }
 
 /// The coldest supply air an audit names, K (−40 °C, the coldest service temperature of rail
@@ -1416,6 +1473,97 @@ pub struct AuditOutcome {
     /// The unmodelled flow the base model leaves, per configuration group (where the model is
     /// wrong and what is missing, [`crate::missing_flow`]).
     pub missing: Vec<Reconstruction>,
+    /// How much the releases of one configuration differ from each other beyond their noise
+    /// ([`release_spread`]), for the group where they differ most.
+    pub release_spread: Option<ReleaseSpread>,
+}
+
+/// How much the releases of one configuration group differ from each other beyond their noise:
+/// the audit fits their mean, and the mean of releases that differ (a leak on every other one,
+/// a supply temperature that varies with the season, a transport delay on half of them: a
+/// fourth independent tester's sets) is no release of any brake, so a cause fitted to it may
+/// fit none of them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReleaseSpread {
+    /// The group's documented configuration (its first file names it).
+    pub first_file: String,
+    /// Releases in the group.
+    pub releases: usize,
+    /// Median over the releases of the RMS of (release − group mean) smoothed over
+    /// [`SPREAD_SMOOTH_S`], less what their noise alone gives (in quadrature), bar.
+    pub spread_bar: f64,
+    /// What their noise alone gives (median), bar.
+    pub noise_bar: f64,
+    /// Noise σ of the group's mean release, bar (the unit of [`AuditOutcome::residual_to_noise`]).
+    pub sigma_mean_bar: f64,
+}
+
+/// How many times what their noise alone gives the releases must differ by before the spread
+/// can matter ([`ReleaseSpread::matters`]): the independent plants' per-release spread of
+/// supply (± 5 mbar), friction (± 2 %) and volume (± 0.5 %) gives ≈ 3×, a supply temperature
+/// spread of 263–313 K 27×.
+pub const SPREAD_NOISE_RATIO: f64 = 5.0;
+
+impl ReleaseSpread {
+    /// Whether the releases differ from each other by more than [`SPREAD_NOISE_RATIO`] × their
+    /// noise *and* by more than their mean differs from the base twin (`base_to_noise`, in noise
+    /// σ of the mean): then a cause fitted to the mean is not earned. Measured on a fourth
+    /// independent tester's sets, spread ÷ base residual: 15 ÷ 1.7 (supply temperature 263–313
+    /// K per release), 27 ÷ 14 (a 0.5 s delay on half of them), 123 ÷ 76 (a 0.8 mm leak on every
+    /// other one), 116 ÷ 79 (a leak growing release by release); 1.7 ÷ 16 and 14 ÷ 24 where one
+    /// cause acts on every release alike.
+    pub fn matters(&self, base_to_noise: f64) -> bool {
+        self.spread_bar >= SPREAD_NOISE_RATIO * self.noise_bar && self.spread_bar >= base_to_noise * self.sigma_mean_bar
+    }
+
+    /// The sentence a verdict carries when it [`matters`](Self::matters).
+    pub fn text(&self) -> String {
+        format!(
+            "the {} releases of the group of {} differ from each other by {:.3} bar (beyond their noise, which \
+             alone gives {:.4} bar), more than their mean differs from the base twin: no single cause fitted to \
+             their mean is earned (a fault on some releases only, one that grows, or a supply temperature that \
+             varies); audit them in groups (by date, by locomotive) or one by one",
+            self.releases, self.first_file, self.spread_bar, self.noise_bar
+        )
+    }
+}
+
+/// The window over which a release's deviation from its group mean is smoothed, s.
+pub const SPREAD_SMOOTH_S: f64 = 0.5;
+
+/// [`ReleaseSpread`] of the group of `data` (with at least 3 releases) whose releases differ
+/// most; `None` when no group has 3.
+pub fn release_spread(data: &AuditData) -> Option<ReleaseSpread> {
+    let w = (SPREAD_SMOOTH_S / SAMPLE_PERIOD_S) as usize;
+    data.groups
+        .iter()
+        .filter(|g| g.traces.len() >= 3)
+        .filter_map(|g| {
+            let n = g.traces.len() as f64;
+            let (mut spread, mut noise): (Vec<f64>, Vec<f64>) = g
+                .traces
+                .iter()
+                .zip(&g.sigma_traces)
+                .filter_map(|(t, &sigma)| {
+                    let d: Vec<f64> = t.iter().zip(&g.mean).map(|(a, m)| a - m).collect();
+                    let smooth: Vec<f64> = d.chunks_exact(w).map(|c| c.iter().sum::<f64>() / w as f64).collect();
+                    if smooth.is_empty() {
+                        return None;
+                    }
+                    let rms = (smooth.iter().map(|x| x * x).sum::<f64>() / smooth.len() as f64).sqrt();
+                    let alone = sigma * ((1.0 - 1.0 / n) / w as f64).sqrt();
+                    Some(((rms * rms - alone * alone).max(0.0).sqrt(), alone))
+                })
+                .unzip();
+            (!spread.is_empty()).then(|| ReleaseSpread {
+                first_file: g.files.first().cloned().unwrap_or_default(),
+                releases: g.traces.len(),
+                spread_bar: median(&mut spread),
+                noise_bar: median(&mut noise),
+                sigma_mean_bar: g.sigma_mean,
+            })
+        })
+        .max_by(|a, b| a.spread_bar.total_cmp(&b.spread_bar))
 }
 
 /// Largest RMS residual, in noise σ of the mean release, that a model may leave and still be
@@ -1784,11 +1932,36 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         chosen = base.clone();
         alternatives.clear();
     }
+    // Releases that differ from each other by more than their mean differs from the twin: a
+    // cause fitted to the mean is not earned.
+    let spread = release_spread(data);
+    if let Some(r) = spread.as_ref().filter(|r| terms(&chosen) > 0 && r.matters(to_noise(base.rss))) {
+        flagged.insert(
+            0,
+            format!(
+                "{}: fits the mean of {} releases that differ from each other by {:.3} bar",
+                candidate_text(&chosen),
+                r.releases,
+                r.spread_bar
+            ),
+        );
+        chosen = base.clone();
+        alternatives.clear();
+    }
     // What outside the library a single kind of release cannot tell from the named mechanisms.
     for (_, text) in LOOK_ALIKES.iter().filter(|(m, _)| chosen.effects.iter().any(|e| e.0 == *m)) {
         if !alternatives.iter().any(|a| a == text) {
             alternatives.push((*text).to_owned());
         }
+    }
+    // Along the Cf · area · √T direction (no heat transfer), the parts the data cannot tell apart.
+    let orifice_mm = data.groups.first().map_or(0.0, |g| g.config.orifice.0 * 1e3);
+    if let Some((_, scale, _)) = chosen.parameter.filter(|p| p.0 == "discharge_coefficient") {
+        alternatives.extend(discharge_coefficient_look_alikes(scale, orifice_mm));
+    } else if let [(Mechanism::GasTemperature, t, _)] = chosen.effects[..] {
+        alternatives.push(
+            discharge_coefficient_look_alikes((t / Mechanism::GasTemperature.off()).sqrt(), orifice_mm).swap_remove(0),
+        );
     }
     let residual_to_noise = (to_noise(base.rss), to_noise(chosen.rss));
     if !(residual_to_noise.0.is_finite() && residual_to_noise.1.is_finite()) {
@@ -1871,6 +2044,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         .collect();
     Ok(AuditOutcome {
         missing,
+        release_spread: spread,
         source: data.source.clone(),
         warnings: data.warnings.clone(),
         cause,
@@ -1930,8 +2104,10 @@ impl AuditOutcome {
     /// The `--json` document:
     /// `{"cause", "magnitude", "uncertainty", "magnitudes", "causes", "nmse_base_pct",
     /// "nmse_extended_pct", "nmse_ratio", "nmse_per_trace_base_pct", "nmse_per_trace_extended_pct",
-    /// "noise_sigma_bar", "ranking", "warnings"}`; `warnings` is an array of strings (unknown
-    /// metadata keys, [`AuditData::warnings`]), empty when there is nothing to say.
+    /// "noise_sigma_bar", "ranking", "warnings", "release_spread"}`; `warnings` is an array of
+    /// strings (unknown metadata keys, a chamber drop, [`AuditData::warnings`]), empty when there
+    /// is nothing to say; `release_spread` is `{"first_file", "releases", "spread_bar",
+    /// "noise_bar", "matters"}` ([`ReleaseSpread`]) or `null` (no group of 3 releases).
     ///
     /// - one mechanism: `cause` is its name, `magnitude` a number in its unit;
     /// - two: `cause` is `a+b` (names in [`Mechanism::ALL`] order, i.e. the issue's), `magnitude` and
@@ -1979,6 +2155,16 @@ impl AuditOutcome {
         doc["flagged"] = serde_json::json!(self.flagged);
         doc["unmodelled_flow"] = serde_json::json!(self.missing.iter().map(reconstruction_json).collect::<Vec<_>>());
         doc["warnings"] = serde_json::json!(self.warnings);
+        doc["release_spread"] = match &self.release_spread {
+            Some(r) => serde_json::json!({
+                "first_file": r.first_file,
+                "releases": r.releases,
+                "spread_bar": r.spread_bar,
+                "noise_bar": r.noise_bar,
+                "matters": r.matters(self.residual_to_noise.0),
+            }),
+            None => serde_json::Value::Null,
+        };
         doc
     }
 
@@ -2030,6 +2216,9 @@ impl AuditOutcome {
                 }
             }
         };
+        if let Some(r) = self.release_spread.as_ref().filter(|r| self.cause != "none" && r.matters(base)) {
+            text.push_str(&format!("; {}", r.text()));
+        }
         if !self.alternatives.is_empty() {
             text.push_str(&format!("; the data fit {} as well", self.alternatives.join(" or ")));
         }
@@ -2130,6 +2319,14 @@ impl AuditOutcome {
              chosen {:.2} (floor {WINDOW_FLOOR_RATIO})",
             self.residual_to_noise.0, self.residual_to_noise.1, self.window_to_noise.0, self.window_to_noise.1
         );
+        if let Some(r) = &self.release_spread {
+            let _ = writeln!(
+                s,
+                "releases among themselves: they differ from their mean by {:.4} bar beyond their noise ({} releases of \
+                 the group of {}; {SPREAD_SMOOTH_S} s averages, noise alone {:.4} bar)",
+                r.spread_bar, r.releases, r.first_file, r.noise_bar
+            );
+        }
         let _ = writeln!(s, "verdict: {}", self.verdict_text());
         s
     }

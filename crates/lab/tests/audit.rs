@@ -339,3 +339,72 @@ fn a_release_cut_off_before_its_plateau_is_refused() {
         }
     }
 }
+
+/// Noisy releases (the generator's transducer and ADC) of plants `plant(k)` for release `k`, all
+/// documented as the nominal brake.
+fn plant_set(releases: usize, seed: u64, plant: impl Fn(usize) -> pbm::TwinParams) -> pbm_lab::audit::AuditData {
+    use rand_core::SeedableRng;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let traces = (0..releases)
+        .map(|k| {
+            let (p, _) = pbm_lab::generate::simulate_plant(
+                &plant(k),
+                pbm_lab::generate::GENERATE_STEP_S,
+                pbm_lab::generate::TRACE_SAMPLES,
+            )
+            .unwrap();
+            let adc = pbm_lab::generate::sense(&p, &mut rng);
+            let bar = adc.iter().map(|&c| pbm::sensor::bar_from_adc(pbm::AdcCounts(c)).0).collect();
+            (format!("r{k:02}.csv"), pbm::TwinParams::nominal(), bar)
+        })
+        .collect();
+    pbm_lab::audit::data_from_traces("plant_set", traces).unwrap()
+}
+
+/// A fourth independent tester's findings (2026-11-27): a fatigued spring (0.8 × its rate) was
+/// named a progressive spring with a negative ratio (no candidate for the rate beyond
+/// tolerance); a partly blocked orifice (1.15 mm documented as 1.25 mm) was named a discharge
+/// coefficient with nothing said of the orifice, and a brake at −40 °C the same; releases that
+/// differ from each other (a leak on every other one) were fitted through their mean and a
+/// cause named for a mean that is no release.
+#[test]
+fn a_weak_spring_a_blocked_orifice_and_releases_that_differ_are_told_honestly() {
+    let options = AuditOptions { pairs: false, ..AuditOptions::default() };
+    let nominal = pbm::TwinParams::nominal();
+
+    let weak =
+        plant_set(8, 41, |_| pbm::TwinParams { spring_rate_n_per_m: 0.8 * nominal.spring_rate_n_per_m, ..nominal });
+    let out = audit(&weak, options).expect("audit");
+    eprintln!("weak spring: {}", out.verdict_text());
+    assert_eq!(out.cause, "spring_rate", "{}", out.verdict_text());
+    let (_, scale, _) = out.cause_parameter.expect("a part beyond tolerance");
+    assert!((scale - 0.8).abs() < 0.03, "{scale}");
+
+    let blocked = plant_set(8, 42, |_| pbm::TwinParams { orifice: pbm::units::Meters(1.15e-3), ..nominal });
+    let out = audit(&blocked, options).expect("audit");
+    eprintln!("blocked orifice: {}", out.verdict_text());
+    assert!(matches!(out.cause.as_str(), "discharge_coefficient" | "gas_temperature"), "{}", out.verdict_text());
+    assert!(
+        out.alternatives.iter().any(|a| a.contains("an orifice of 1.1") && a.contains("1.25 mm is documented")),
+        "{:?}",
+        out.alternatives
+    );
+
+    let leaky = plant_set(8, 43, |k| pbm::TwinParams {
+        leak: pbm::units::Meters(if k % 2 == 0 { 0.8e-3 } else { 0.0 }),
+        ..nominal
+    });
+    let out = audit(&leaky, options).expect("audit");
+    eprintln!("leak on every other release: {}", out.verdict_text());
+    assert_eq!(out.cause, "unexplained", "{}", out.verdict_text());
+    assert!(out.verdict_text().contains("differ from each other"), "{}", out.verdict_text());
+    assert!(out.to_json()["release_spread"]["matters"].as_bool().unwrap());
+
+    // One cause acting on every release alike: the releases' own spread does not matter.
+    let spread = out.release_spread.clone().unwrap();
+    assert!(spread.spread_bar > 0.1, "{spread:?}");
+    let weak_again =
+        audit(&plant_set(8, 44, |_| pbm::TwinParams { leak: pbm::units::Meters(0.8e-3), ..nominal }), options)
+            .expect("audit");
+    assert!(!weak_again.verdict_text().contains("differ from each other"), "{}", weak_again.verdict_text());
+}

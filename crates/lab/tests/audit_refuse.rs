@@ -271,3 +271,32 @@ fn a_piston_breaking_free_is_audited_and_a_transducer_step_is_refused() {
         assert!(why.contains(file.as_str()) && why.contains("sensor fault `impossible_rate` at t = 1"), "{why}");
     }
 }
+
+/// A release from a chamber left at 3 bar g (not vented before the command; a fourth independent
+/// tester's set) had been audited and answered with a dead volume of 0.16 × documented: it is
+/// refused with the reason.
+#[test]
+fn a_release_from_a_chamber_not_vented_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = generated(tmp.path(), 2, 33, Extensions::NONE);
+    let manifest = std::fs::read_to_string(dir.join("manifest.csv")).unwrap();
+    for file in manifest.lines().skip(1).filter_map(|l| l.split(',').next()) {
+        let text = std::fs::read_to_string(dir.join(file)).unwrap();
+        let mut raised = String::new();
+        for line in text.lines() {
+            match line.split_once(',').and_then(|(t, a)| Some((t.parse::<f64>().ok()?, a.parse::<u16>().ok()?))) {
+                Some((t, adc)) => {
+                    // From 3 bar g to the same plateau.
+                    let p = 3.0 + pbm::sensor::bar_from_adc(pbm::AdcCounts(adc)).0 * (7.7 - 3.0) / 7.7;
+                    let _ = writeln!(raised, "{t:.2},{}", pbm::sensor::adc_from_bar(pbm::units::BarG(p)).0);
+                }
+                None => {
+                    let _ = writeln!(raised, "{line}");
+                }
+            }
+        }
+        std::fs::write(dir.join(file), raised).unwrap();
+    }
+    let msg = no_usable_release(&dir);
+    assert!(msg.contains("no release from a vented chamber: the pressure reads 3.0"), "{msg}");
+}
