@@ -291,6 +291,12 @@ pub struct SweepArgs {
     /// Also run this many null cases (clean plant; the audit must say `none`).
     #[arg(long, default_value_t = 0)]
     null_cases: u64,
+    /// Also run this many open-world cases: an effect outside the library (hunting regulator,
+    /// leak above a pressure, supply cut, icing orifice, rough bore patch, tearing seal,
+    /// transducer bow), half of them mixed with a library mechanism; the audit must never say
+    /// `none` while the base NMSE is ≥ 3× the noise floor's.
+    #[arg(long, default_value_t = 0)]
+    open_world: u64,
     /// Print the audit summary of every missed case.
     #[arg(long)]
     verbose: bool,
@@ -312,6 +318,7 @@ impl TryFrom<SweepArgs> for SweepOptions {
             range,
             pairs: a.pairs,
             null_cases: a.null_cases,
+            open_world: a.open_world,
             verbose: a.verbose,
         })
     }

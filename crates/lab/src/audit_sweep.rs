@@ -195,13 +195,24 @@ pub struct SweepOptions {
     pub pairs: u64,
     /// Also run this many null cases (clean plant; the audit must say `none`).
     pub null_cases: u64,
+    /// Also run this many open-world cases ([`crate::open_world`]).
+    pub open_world: u64,
     /// Print the audit summary of every missed case.
     pub verbose: bool,
 }
 
 impl Default for SweepOptions {
     fn default() -> Self {
-        Self { cases: 200, seed: 1, effects: Vec::new(), range: None, pairs: 0, null_cases: 0, verbose: false }
+        Self {
+            cases: 200,
+            seed: 1,
+            effects: Vec::new(),
+            range: None,
+            pairs: 0,
+            null_cases: 0,
+            open_world: 0,
+            verbose: false,
+        }
     }
 }
 
@@ -296,6 +307,9 @@ pub fn run(a: &SweepOptions) -> Result<()> {
     }
     if nulls.total > 0 {
         println!("null cases answered `none`: {}/{}", nulls.names, nulls.total);
+    }
+    if a.open_world > 0 {
+        crate::open_world::run(a.open_world, a.seed, a.verbose)?;
     }
     Ok(())
 }

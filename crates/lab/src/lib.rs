@@ -22,6 +22,7 @@ pub mod fit;
 pub mod generate;
 pub mod metro;
 pub mod missing_flow;
+pub mod open_world;
 pub mod plant;
 pub mod random;
 pub mod reference;

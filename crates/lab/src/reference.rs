@@ -116,6 +116,21 @@ impl ReferenceTwin {
         self
     }
 
+    /// The plant's parameters.
+    pub fn params(&self) -> &TwinParams {
+        &self.params
+    }
+
+    /// Changes the base parameters mid-release, keeping the state: the time-varying conditions
+    /// of the open-world cases ([`crate::open_world`]: a hunting regulator, a leak that opens
+    /// above a pressure, an orifice that ices up). Not validated; the mechanism extensions are
+    /// not to be changed (their state is not re-initialised).
+    pub fn retune(&mut self, f: impl FnOnce(&mut TwinParams)) {
+        f(&mut self.params);
+        self.area_in = circle_area(self.params.orifice);
+        self.area_leak = circle_area(self.params.leak);
+    }
+
     /// Advances `duration` seconds with the valve open (release) or closed (vent).
     pub fn advance(&mut self, duration: f64, valve_open: bool) {
         let n = (duration / self.step_s).round() as u64;
