@@ -57,14 +57,17 @@
 //! ([`Reception::relock_unconfirmed`]).
 //!
 //! A frame stamped more than [`HEARTBEAT_TIMEOUT_US`] after every frame before it ends a silence
-//! of the receive clock; the receiver keeps its state from before that frame for
-//! [`TWO_STREAMS_HOLD_US`] of the new time. A frame stamped more than [`CLOCK_BACK_SLACK_US`]
-//! before it within that time shows that the stamps since the silence were wrong (a logger whose
-//! clock glitched ahead for a frame or a few) or that the receive clock went back: the receiver
-//! returns to its state before them and judges the frame from there
-//! ([`Reception::clock_back_us`]). Without it, one heartbeat stamped 4096 s ahead (its 12-bit
+//! of the receive clock; the receiver keeps what it knew before that frame for
+//! [`TWO_STREAMS_HOLD_US`] of the new time. Two frames in a row stamped more than
+//! [`CLOCK_BACK_SLACK_US`] before it, each continuing what it knew before (accepted against it),
+//! show that the stamps since the silence were wrong (a logger whose clock glitched ahead for a
+//! frame or a few) or that the receive clock went back: the receiver returns to that knowledge
+//! with both frames ([`Reception::clock_back_us`]; the first of the two was judged, and flagged,
+//! on the new time line). One such frame alone — a frame of an outage logged late, an old frame
+//! inserted — changes nothing. Without this rule one heartbeat stamped 4096 s ahead (its 12-bit
 //! counter then fits) was taken as the end of a silence, and every genuine frame after it was
-//! flagged as a flood to the end of the log.
+//! flagged as a flood to the end of the log; with it on a single frame, one genuine frame of an
+//! outage logged late erased the genuine frames after the outage (fifth black-box attacker).
 //!
 //! `d − 1` heartbeats were lost ([`Reception::lost_status`]; a fault report that arrives when a
 //! heartbeat is overdue reports it at once); fault reports the sender counted but this receiver
@@ -535,10 +538,11 @@ pub struct Reception {
     /// ([`Self::clock_back_us`]).
     pub clock_jumped: bool,
     /// `Some(µs)`: this frame is stamped that much before the frame that ended the last silence
-    /// of the receive clock, within [`TWO_STREAMS_HOLD_US`] of it: the stamps since the silence
-    /// were wrong (a logger glitch) or the receive clock went back. The receiver returned to its
-    /// state before that frame and judged this one from there; what it accepted since is
-    /// undone, and a display goes back to what it showed before the silence.
+    /// of the receive clock, within [`TWO_STREAMS_HOLD_US`] of it, and it and the frame before it
+    /// both continue what the receiver knew before the silence: the stamps since the silence
+    /// were wrong (a logger glitch) or the receive clock went back. The receiver returned to
+    /// that knowledge (with the frame before) and judged this one from there; what it accepted
+    /// since the silence is undone, and a display goes back to what it showed before it.
     pub clock_back_us: Option<u64>,
 }
 
@@ -575,6 +579,31 @@ impl Reception {
 /// Stream decoder of the monitor's frames.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Decoder {
+    /// What the receiver knows now.
+    st: Knowledge,
+    /// What it knew before the frame that ended the last silence of the receive clock
+    /// ([`Reception::clock_back_us`]).
+    before_jump: Option<Jump>,
+}
+
+/// A jump ahead of the receive clock (a frame stamped more than [`HEARTBEAT_TIMEOUT_US`] after
+/// every frame before it), kept for [`TWO_STREAMS_HOLD_US`] of the new time.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Jump {
+    /// The stamp of the frame that jumped.
+    at_us: u64,
+    /// What the receiver knew before it.
+    before: Knowledge,
+    /// A frame stamped before the jump that continued `before`: that knowledge with it, and its
+    /// stamp. A second one in a row that continues it shows the old time line going on.
+    back: Option<(Knowledge, u64)>,
+}
+
+/// Everything a [`Decoder`] knows of the stream: one copy is followed, and one is kept from
+/// before a jump of the receive clock, to judge a frame stamped before the jump against.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Knowledge {
+    /// The session followed (none before the first heartbeat, and after a silence).
     session: Option<Session>,
     /// The session lost to the last silence (for the plausibility of the next one).
     lost: Option<Session>,
@@ -599,25 +628,6 @@ pub struct Decoder {
     /// ([`Reception::relock_unconfirmed`]).
     relock_unconfirmed_until: u64,
     /// The newest receive stamp of any frame, µs (0 before the first).
-    newest_us: u64,
-    /// The receiver's state before the frame that ended the last silence of the receive clock,
-    /// and that frame's stamp ([`Reception::clock_back_us`]).
-    before_jump: Option<(Snapshot, u64)>,
-}
-
-/// Everything a [`Decoder`] knows except its own [`Decoder::before_jump`]: what a frame stamped
-/// before a jump of the receive clock is judged against.
-#[derive(Debug, Clone, PartialEq, Eq)]
-struct Snapshot {
-    session: Option<Session>,
-    lost: Option<Session>,
-    newest_release: [u8; 64],
-    seen: u64,
-    unattributed: [(u64, u64); UNATTRIBUTED_MAX],
-    unattributed_len: u8,
-    before_relock: Option<(Session, u64)>,
-    two_streams_until: u64,
-    relock_unconfirmed_until: u64,
     newest_us: u64,
 }
 
@@ -654,94 +664,56 @@ impl Decoder {
     /// A decoder that has seen nothing yet.
     pub const fn new() -> Self {
         Self {
-            session: None,
-            lost: None,
-            newest_release: [0; 64],
-            seen: 0,
-            unattributed: [(0, 0); UNATTRIBUTED_MAX],
-            unattributed_len: 0,
-            before_relock: None,
-            two_streams_until: 0,
-            relock_unconfirmed_until: 0,
-            newest_us: 0,
+            st: Knowledge {
+                session: None,
+                lost: None,
+                newest_release: [0; 64],
+                seen: 0,
+                unattributed: [(0, 0); UNATTRIBUTED_MAX],
+                unattributed_len: 0,
+                before_relock: None,
+                two_streams_until: 0,
+                relock_unconfirmed_until: 0,
+                newest_us: 0,
+            },
             before_jump: None,
         }
     }
 
-    /// The state a frame stamped before a jump of the receive clock is judged against.
-    fn snapshot(&self) -> Snapshot {
-        // Destructured, so that a new field cannot be left out.
-        let Self {
-            session,
-            lost,
-            newest_release,
-            seen,
-            unattributed,
-            unattributed_len,
-            before_relock,
-            two_streams_until,
-            relock_unconfirmed_until,
-            newest_us,
-            before_jump: _,
-        } = *self;
-        Snapshot {
-            session,
-            lost,
-            newest_release,
-            seen,
-            unattributed,
-            unattributed_len,
-            before_relock,
-            two_streams_until,
-            relock_unconfirmed_until,
-            newest_us,
-        }
-    }
-
-    /// Returns to `snap` (and forgets the jump).
-    fn restore(&mut self, snap: Snapshot) {
-        let Snapshot {
-            session,
-            lost,
-            newest_release,
-            seen,
-            unattributed,
-            unattributed_len,
-            before_relock,
-            two_streams_until,
-            relock_unconfirmed_until,
-            newest_us,
-        } = snap;
-        *self = Self {
-            session,
-            lost,
-            newest_release,
-            seen,
-            unattributed,
-            unattributed_len,
-            before_relock,
-            two_streams_until,
-            relock_unconfirmed_until,
-            newest_us,
-            before_jump: None,
-        };
-    }
-
-    /// The receive clock's jumps ([`Reception::clock_jumped`], [`Reception::clock_back_us`]).
-    fn follow_receive_clock(&mut self, now_us: u64, rec: &mut Reception) {
-        if let Some((snap, jump_us)) = self.before_jump.take() {
-            if now_us.saturating_add(CLOCK_BACK_SLACK_US) < jump_us {
-                self.restore(snap);
-                rec.clock_back_us = Some(jump_us - now_us);
-            } else if now_us <= jump_us.saturating_add(TWO_STREAMS_HOLD_US) {
-                self.before_jump = Some((snap, jump_us));
+    /// Judges a frame stamped more than [`CLOCK_BACK_SLACK_US`] before the last jump of the
+    /// receive clock against what the receiver knew before the jump: when it continues that and
+    /// the frame before it did too (two in a row: the old time line goes on, the jump was a
+    /// logger's glitch or the clock went back), the receiver returns to that knowledge and this is
+    /// its verdict ([`Reception::clock_back_us`]). One such frame alone (a frame of an outage
+    /// logged late, a replay) changes nothing: the current knowledge judges it.
+    fn judge_before_jump(&mut self, now_us: u64, frame: &impl embedded_can::Frame) -> Option<Reception> {
+        let mut jump = self.before_jump.take()?;
+        if now_us.saturating_add(CLOCK_BACK_SLACK_US) >= jump.at_us {
+            // On the new time line: a run of frames before the jump is broken.
+            jump.back = None;
+            if now_us <= jump.at_us.saturating_add(TWO_STREAMS_HOLD_US) {
+                self.before_jump = Some(jump);
             }
+            return None;
         }
-        if self.newest_us > 0 && now_us > self.newest_us.saturating_add(HEARTBEAT_TIMEOUT_US) {
-            self.before_jump = Some((self.snapshot(), now_us));
-            rec.clock_jumped = true;
+        let (old, continues) = match jump.back.take() {
+            Some((k, t)) if now_us >= t => (k, true),
+            _ => (jump.before.clone(), false),
+        };
+        let now = core::mem::replace(&mut self.st, old);
+        let rec = self.judge(now_us, frame);
+        let old = core::mem::replace(&mut self.st, now);
+        if rec.result.is_err() {
+            self.before_jump = Some(jump);
+            return None;
         }
-        self.newest_us = self.newest_us.max(now_us);
+        if continues {
+            self.st = old;
+            return Some(Reception { clock_back_us: Some(jump.at_us - now_us), ..rec });
+        }
+        jump.back = Some((old, now_us));
+        self.before_jump = Some(jump);
+        None
     }
 
     /// Forgets everything (for example after a bus-off of the receiver).
@@ -751,7 +723,7 @@ impl Decoder {
 
     /// The sender and release followed now, if a session is open.
     pub fn identity(&self) -> Option<Identity> {
-        self.session.map(|s| s.identity)
+        self.st.session.map(|s| s.identity)
     }
 
     /// Whether a report accepted at `accepted_us` is still current at `now_us`: the session is
@@ -760,7 +732,7 @@ impl Decoder {
     /// no second stream of the locomotive was heard around it ([`Reception::two_streams`]). A
     /// display shows anything else as stale.
     pub fn is_current(&self, accepted_us: u64, now_us: u64) -> bool {
-        match self.session {
+        match self.st.session {
             Some(s) => {
                 now_us.saturating_sub(s.at_us) <= HEARTBEAT_TIMEOUT_US
                     && s.fault.is_some_and(|f| f.at_us == accepted_us && !f.pending)
@@ -774,8 +746,8 @@ impl Decoder {
                     && !s.count_claim.is_some_and(|c| c.pending_reports())
                     // Not accepted before the end of a hold for two streams of the locomotive
                     // (`Reception::two_streams`).
-                    && accepted_us > self.two_streams_until
-                    && accepted_us > self.relock_unconfirmed_until
+                    && accepted_us > self.st.two_streams_until
+                    && accepted_us > self.st.relock_unconfirmed_until
             }
             None => false,
         }
@@ -785,7 +757,7 @@ impl Decoder {
     /// frame may overtake the report of its own tick, so that report is lost only when another
     /// frame comes first. At the end of a stream (or when the bus goes quiet) they are lost.
     pub fn owed_fault_reports(&self) -> u8 {
-        self.session.or(self.lost).map_or(0, |s| u8::from(s.owed_fault.is_some()))
+        self.st.session.or(self.st.lost).map_or(0, |s| u8::from(s.owed_fault.is_some()))
     }
 
     /// Decodes one frame received at `now_us` (µs of the receive clock, e.g. a log's time
@@ -793,9 +765,21 @@ impl Decoder {
     /// identifiers, remote frames) come back as errors too, so the caller can count or ignore
     /// them.
     pub fn receive(&mut self, now_us: u64, frame: &impl embedded_can::Frame) -> Reception {
+        if let Some(rec) = self.judge_before_jump(now_us, frame) {
+            return rec;
+        }
+        let jumped = self.st.newest_us > 0 && now_us > self.st.newest_us.saturating_add(HEARTBEAT_TIMEOUT_US);
+        if jumped {
+            self.before_jump = Some(Jump { at_us: now_us, before: self.st.clone(), back: None });
+        }
+        Reception { clock_jumped: jumped, ..self.judge(now_us, frame) }
+    }
+
+    /// [`Self::receive`] on the current knowledge.
+    fn judge(&mut self, now_us: u64, frame: &impl embedded_can::Frame) -> Reception {
         let mut rec = Reception::plain(Err(FrameError::NoHeartbeat), None);
-        self.follow_receive_clock(now_us, &mut rec);
-        if let Some(mut s) = self.session {
+        self.st.newest_us = self.st.newest_us.max(now_us);
+        if let Some(mut s) = self.st.session {
             let silence = now_us.saturating_sub(s.at_us);
             if silence > HEARTBEAT_TIMEOUT_US {
                 rec.heartbeat_lost_us = Some(silence);
@@ -806,10 +790,10 @@ impl Decoder {
                 }
                 // A tentative session never confirmed is not worth remembering over the one
                 // before it.
-                if !s.tentative || self.lost.is_none() {
-                    self.lost = Some(s);
+                if !s.tentative || self.st.lost.is_none() {
+                    self.st.lost = Some(s);
                 }
-                self.session = None;
+                self.st.session = None;
             }
         }
         rec.result = match frame_payload(frame) {
@@ -831,13 +815,13 @@ impl Decoder {
         let report = decode_signals(MessageKind::Status, bits)?;
         let link = status_link(bits);
         let loco = link.identity.locomotive;
-        let lost_same = self.lost.filter(|p| p.identity.locomotive == loco);
+        let lost_same = self.st.lost.filter(|p| p.identity.locomotive == loco);
         let continues_lost = lost_same.and_then(|p| continuation(&p, now, &link).ok());
-        match self.session {
+        match self.st.session {
             Some(s) if s.tentative && continues_lost.is_some() => {
                 // The sender never restarted: what opened the tentative session was a replay.
                 rec.superseded = true;
-                if let (Some(p), Some(c)) = (self.lost.take(), continues_lost) {
+                if let (Some(p), Some(c)) = (self.st.lost.take(), continues_lost) {
                     self.accept_status(p, now, &link, c, rec);
                 }
             }
@@ -857,7 +841,7 @@ impl Decoder {
                                     <= TOLERANCE_US + drift(span)
                         });
                     if !outvoted {
-                        if let Some(o) = self.session.as_mut().filter(|o| o.tentative) {
+                        if let Some(o) = self.st.session.as_mut().filter(|o| o.tentative) {
                             o.rival = Some((loco, link.counter, now));
                         }
                         return Err(FrameError::ForeignSender { locomotive: loco });
@@ -890,7 +874,7 @@ impl Decoder {
                     {
                         rec.superseded = true;
                         self.open(now, &link, true, rec);
-                        if let Some(o) = self.session.as_mut() {
+                        if let Some(o) = self.st.session.as_mut() {
                             // Keep what the receiver knows of the release and its reports.
                             o.release_before_us = s.release_before_us;
                             o.release_since_us = s.release_since_us;
@@ -928,14 +912,14 @@ impl Decoder {
                             && (link.identity.release & 0x3F == (s.identity.release + 1) & 0x3F
                                 || now.saturating_sub(s.at_us) > STATUS_PERIOD_US + TOLERANCE_US) =>
                     {
-                        self.lost = Some(s);
+                        self.st.lost = Some(s);
                         self.open(now, &link, true, rec);
                         self.mark_restart_jump(s.identity.release);
                     }
                     Err(e) => {
                         // A newer heartbeat late for the session clock: remember its phase (a
                         // latency step shows the same phase again in the next one).
-                        if let (FrameError::Untimely { off_ms }, Some(o)) = (e, self.session.as_mut()) {
+                        if let (FrameError::Untimely { off_ms }, Some(o)) = (e, self.st.session.as_mut()) {
                             if off_ms > 0 {
                                 o.off_phase = Some((link.counter, now));
                             }
@@ -950,11 +934,11 @@ impl Decoder {
                 // that restarted comes with a newer release number (a power-up counts as one,
                 // see `CanReporter::set_identity`) and a counter not above the silence.
                 if let Some(c) = continues_lost {
-                    if let Some(p) = self.lost.take() {
+                    if let Some(p) = self.st.lost.take() {
                         self.accept_status(p, now, &link, c, rec);
                     }
-                } else if self.seen & (1 << loco) != 0 {
-                    let newest = self.newest_release[usize::from(loco)];
+                } else if self.st.seen & (1 << loco) != 0 {
+                    let newest = self.st.newest_release[usize::from(loco)];
                     let release = link.identity.release & 0x3F;
                     if release == newest {
                         // The release this receiver already followed, not continuing it: a
@@ -986,8 +970,8 @@ impl Decoder {
     fn restart_plausible(&self, link: &StatusLink, now: u64, before: Option<&Session>) -> bool {
         let i = usize::from(link.identity.locomotive & 0x3F);
         let release = link.identity.release & 0x3F;
-        let newest = self.newest_release[i];
-        if self.seen & (1 << i) != 0 && (release == newest || !release_not_before(release, newest)) {
+        let newest = self.st.newest_release[i];
+        if self.st.seen & (1 << i) != 0 && (release == newest || !release_not_before(release, newest)) {
             return false;
         }
         // Newer than the session it would replace too (which may be a tentative one, whose
@@ -1008,7 +992,7 @@ impl Decoder {
     /// `before` (more than the power-up and a release command), it cannot be told from an old
     /// start-up recording and its reports are never current ([`Session::restart_jump`]).
     fn mark_restart_jump(&mut self, before: u8) {
-        if let Some(o) = self.session.as_mut() {
+        if let Some(o) = self.st.session.as_mut() {
             let jump = o.identity.release.wrapping_sub(before) & 0x3F;
             if jump > 2 {
                 o.restart_jump = jump;
@@ -1018,7 +1002,7 @@ impl Decoder {
 
     fn open(&mut self, now: u64, link: &StatusLink, tentative: bool, rec: &mut Reception) {
         let identity = link.identity.masked();
-        self.session = Some(Session {
+        self.st.session = Some(Session {
             identity,
             counter: link.counter,
             at_us: now,
@@ -1212,10 +1196,10 @@ impl Decoder {
         s.at_us = now;
         s.tentative = false;
         s.phase_run = None;
-        self.session = Some(s);
+        self.st.session = Some(s);
         self.remember(link);
         if c.undo_release || c.release_wrapped {
-            self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
+            self.st.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
         }
         rec.identity = Some(s.identity);
     }
@@ -1223,10 +1207,10 @@ impl Decoder {
     fn remember(&mut self, link: &StatusLink) {
         let id = link.identity.masked();
         let i = usize::from(id.locomotive);
-        if self.seen & (1 << i) == 0 || release_not_before(id.release, self.newest_release[i]) {
-            self.newest_release[i] = id.release;
+        if self.st.seen & (1 << i) == 0 || release_not_before(id.release, self.st.newest_release[i]) {
+            self.st.newest_release[i] = id.release;
         }
-        self.seen |= 1 << i;
+        self.st.seen |= 1 << i;
     }
 
     fn fault(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
@@ -1236,12 +1220,12 @@ impl Decoder {
             // A flagged frame moves nothing: what judging it would have withdrawn stays.
             rec.withdrawn = withdrawn_before;
             rec.count_corrupt = false;
-        } else if now <= self.two_streams_until {
+        } else if now <= self.st.two_streams_until {
             // Two streams of this locomotive were heard: no report is current until one of them
             // has been silent for the hold.
             rec.two_streams = true;
             rec.stale = true;
-        } else if now <= self.relock_unconfirmed_until {
+        } else if now <= self.st.relock_unconfirmed_until {
             rec.relock_unconfirmed = true;
             rec.stale = true;
         }
@@ -1253,8 +1237,8 @@ impl Decoder {
         // well be alive: a fresh report of its release shows it), but it is not current: no
         // live heartbeat vouches for it ([`Reception::stale`]). It does not reopen the session,
         // only a heartbeat does.
-        let in_lost = self.session.is_none();
-        let Some(mut s) = self.session.or(self.lost) else { return Err(FrameError::NoHeartbeat) };
+        let in_lost = self.st.session.is_none();
+        let Some(mut s) = self.st.session.or(self.st.lost) else { return Err(FrameError::NoHeartbeat) };
         let tau = l::TIME_SINCE_RELEASE.get(bits) as u16;
         let tau_us = u64::from(tau) * TAU_STEP_US;
         // Its release: the session's, or the next one if it began after the last heartbeat,
@@ -1550,16 +1534,16 @@ impl Decoder {
         s.fault_before = s.fault;
         rec.restart_jump = s.restart_jump;
         if undo_release {
-            self.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
+            self.st.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
         }
         s.fault = Some(track);
         // (The report the status frame overtook was counted by it already.)
         s.unconfirmed = if overtaken && s.unconfirmed.is_none() { None } else { Some(unconfirmed) };
         if in_lost {
-            self.lost = Some(s);
+            self.st.lost = Some(s);
             rec.stale = true;
         } else {
-            self.session = Some(s);
+            self.st.session = Some(s);
         }
         rec.identity = Some(identity);
         Ok(report)
@@ -1587,13 +1571,13 @@ impl Decoder {
         let found = (1..=possible)
             .map(|on| Identity { release: lost.identity.release.wrapping_add(on) & 0x3F, ..lost.identity })
             .find(|id| check_crc(MessageKind::Fault, bits, *id).is_ok());
-        let (Some(identity), Some(slot)) = (found, self.unattributed.get_mut(usize::from(self.unattributed_len)))
+        let (Some(identity), Some(slot)) = (found, self.st.unattributed.get_mut(usize::from(self.st.unattributed_len)))
         else {
             return Err(e);
         };
         let report = decode_signals(MessageKind::Fault, bits)?;
         *slot = (now, bits);
-        self.unattributed_len += 1;
+        self.st.unattributed_len += 1;
         rec.unattributed = true;
         rec.stale = true;
         rec.identity = Some(identity);
@@ -1608,12 +1592,12 @@ impl Decoder {
     /// chain (they came before the frame that attributes them); a display shows the ones that
     /// fit as past reports, and drops the others.
     fn attribute_held(&mut self, now: u64, bits: u64, rec: &mut Reception) {
-        let n = usize::from(core::mem::take(&mut self.unattributed_len));
+        let n = usize::from(core::mem::take(&mut self.st.unattributed_len));
         let link = status_link(bits);
         let id = link.identity.masked();
         let before = Identity { release: id.release.wrapping_sub(1) & 0x3F, ..id };
         let count = link.fault_count & 0xF;
-        for &(at, fb) in self.unattributed.iter().take(n) {
+        for &(at, fb) in self.st.unattributed.iter().take(n) {
             let crc_fits =
                 check_crc(MessageKind::Fault, fb, id).is_ok() || check_crc(MessageKind::Fault, fb, before).is_ok();
             let counter = l::FAULT_COUNTER.get(fb) as u8;
@@ -1631,7 +1615,7 @@ impl Decoder {
     /// Updates the fault track of the session a flagged report was judged against (the
     /// reordered-pair and latency-step evidence), nothing else.
     fn set_fault(&mut self, f: FaultTrack, in_lost: bool) {
-        let s = if in_lost { self.lost.as_mut() } else { self.session.as_mut() };
+        let s = if in_lost { self.st.lost.as_mut() } else { self.st.session.as_mut() };
         if let Some(s) = s {
             s.fault = Some(f);
         }
@@ -1652,7 +1636,7 @@ impl Decoder {
         let r = self.first_of_release(s, identity, start, slack);
         if let Err(FrameError::Untimely { off_ms }) = r {
             if off_ms < 0 {
-                let held = if in_lost { self.lost.as_mut() } else { self.session.as_mut() };
+                let held = if in_lost { self.st.lost.as_mut() } else { self.st.session.as_mut() };
                 if let Some(h) = held {
                     h.first_late = Some((identity.release, start));
                 }
@@ -1781,8 +1765,8 @@ impl Decoder {
     /// heartbeats): watch the old phase for a second stream ([`Self::watch_old_stream`]), and
     /// show no report current for the heartbeat period in which it could not have shown yet.
     fn watch_after_move(&mut self, before: Session, now: u64) {
-        self.before_relock = Some((before, now.saturating_add(TWO_STREAMS_HOLD_US)));
-        self.relock_unconfirmed_until = now.saturating_add(STATUS_PERIOD_US + TOLERANCE_US);
+        self.st.before_relock = Some((before, now.saturating_add(TWO_STREAMS_HOLD_US)));
+        self.st.relock_unconfirmed_until = now.saturating_add(STATUS_PERIOD_US + TOLERANCE_US);
     }
 
     /// After a move of the session clock: a heartbeat that continues the session from before it,
@@ -1791,12 +1775,12 @@ impl Decoder {
     /// old session follows it (so the next one is recognised too) and the watch and the hold
     /// on fault reports run on from it.
     fn watch_old_stream(&mut self, now: u64, link: &StatusLink, rec: &mut Reception) {
-        let Some((mut old, until)) = self.before_relock else { return };
+        let Some((mut old, until)) = self.st.before_relock else { return };
         if now > until {
-            self.before_relock = None;
+            self.st.before_relock = None;
             return;
         }
-        let Some(current) = self.session else { return };
+        let Some(current) = self.st.session else { return };
         // A heartbeat newer than the stream followed now is that stream moving back (a latency
         // that ended, a flapping gateway): the normal rules take it. A second stream is one
         // that goes on behind the one followed.
@@ -1812,8 +1796,8 @@ impl Decoder {
             old.counter = link.counter;
             old.at_us = now;
             old.identity.release = link.identity.release & 0x3F;
-            self.before_relock = Some((old, now.saturating_add(TWO_STREAMS_HOLD_US)));
-            self.two_streams_until = now.saturating_add(TWO_STREAMS_HOLD_US);
+            self.st.before_relock = Some((old, now.saturating_add(TWO_STREAMS_HOLD_US)));
+            self.st.two_streams_until = now.saturating_add(TWO_STREAMS_HOLD_US);
             rec.two_streams = true;
         }
     }
@@ -1871,8 +1855,8 @@ impl Decoder {
         let link = status_link(bits);
         self.watch_old_stream(now, &link, rec);
         let loco = link.identity.locomotive & 0x3F;
-        let in_lost = self.session.is_none();
-        let judged = if in_lost { self.lost } else { self.session };
+        let in_lost = self.st.session.is_none();
+        let judged = if in_lost { self.st.lost } else { self.st.session };
         let run = judged.filter(|s| s.identity.locomotive == loco).and_then(|s| phase_run(&s, now, &link));
         if let (Some(s), Some((r, shift)), Ok(report)) = (judged, run, decode_signals(MessageKind::Status, bits)) {
             if r.len >= RELOCK_RUN {
@@ -1893,7 +1877,7 @@ impl Decoder {
                         moved.last_fault_counter = Some(count.wrapping_sub(1) & 0xF);
                     }
                     if in_lost {
-                        self.lost = None;
+                        self.st.lost = None;
                     }
                     self.accept_status(moved, now, &link, c, rec);
                     rec.relocked_ms = Some(ms(shift));
@@ -1907,7 +1891,7 @@ impl Decoder {
         let result = self.status(now, bits, rec);
         if result.is_err() {
             // Still the session it was judged against (a flagged frame replaces none).
-            let held = if in_lost { self.lost.as_mut() } else { self.session.as_mut() };
+            let held = if in_lost { self.st.lost.as_mut() } else { self.st.session.as_mut() };
             // (A frame that is no part of a run leaves the run as it is.)
             if let (Some(h), Some(s), Some((r, _))) = (held, judged, run) {
                 if h.identity.locomotive == s.identity.locomotive && h.counter == s.counter {
