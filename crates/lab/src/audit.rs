@@ -537,11 +537,12 @@ fn audit_trace(data: &Dataset, row: &ManifestRow) -> Result<AuditTrace, FileErro
     Ok((config, p, unknown, drop))
 }
 
-/// A sudden drop of the chamber pressure during the rise that the pressure comes back from: the
-/// core's transducer check calls it `impossible_rate` (a step that stays), but a transducer that
-/// stepped would still read low at the plateau. A piston that sticks and breaks free (stick-slip)
-/// does this: an independent tester's plant, whose 16 releases were all refused as sensor
-/// faults. The release is audited, the drop is said.
+/// A sudden drop of the pressure during the rise that the pressure comes back from: the core's
+/// transducer check calls it `impossible_rate` (a step that stays), but a transducer that
+/// stepped and stayed would still read low at the plateau. A piston that sticks and breaks free
+/// (stick-slip) does this (an independent tester's plant, whose 16 releases were all refused as
+/// sensor faults); so does a transducer that steps and recovers, which the audit cannot tell
+/// from it. The release is audited, and the drop is said with both readings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ChamberDrop {
     /// When the pressure drops, s after the release command.
@@ -556,11 +557,12 @@ impl core::fmt::Display for ChamberDrop {
     fn fmt(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
         write!(
             f,
-            "the pressure drops {:.2} bar at t = {:.2} s, faster than any orifice vents, and comes back: its plateau \
-             is {:+.2} bar from the documented twin's. The core's transducer check calls that a sensor fault \
-             (`impossible_rate`), but a transducer that stepped would still read {:.2} bar low at the plateau: the \
-             chamber pressure itself dropped (a piston that sticks and breaks free, or another sudden volume \
-             change; outside the library). The release is audited with the drop in it.",
+            "the pressure drops {:.2} bar at t = {:.2} s during the rise, faster than any orifice vents, and comes \
+             back: its plateau is {:+.2} bar from the documented twin's. The core's transducer check calls that a \
+             sensor fault (`impossible_rate`), but a transducer that stepped and stayed would still read {:.2} bar \
+             low at the plateau: either the chamber pressure dropped (a piston that sticks and breaks free, or \
+             another sudden volume change; outside the library) or the transducer stepped and recovered; the \
+             audit cannot tell which, and audits the release with the drop in it.",
             self.drop_bar, self.t_s, self.plateau_offset_bar, self.drop_bar
         )
     }
@@ -571,7 +573,8 @@ impl core::fmt::Display for ChamberDrop {
 const DROP_SEARCH: usize = 15;
 
 /// The [`ChamberDrop`] at the core's `impossible_rate` onset `at` of pressures `p` (bar g, 100
-/// Hz), if it is one: the largest fall over 5 samples near `at` is ≥ 6 σ of a difference of two
+/// Hz), if it is one: before the documented twin has made 95 % of its rise
+/// ([`required_samples`]); the largest fall over 5 samples near `at` is ≥ 6 σ of a difference of two
 /// samples ([`noise_sigma`]) and ≥ 0.05 bar; no sample-to-sample rise anywhere departs upwards
 /// from the median of the 10 before it by half the fall or 6 σ, whichever is more (a transducer
 /// stepping back up: no orifice fills that fast); and the plateau lies within half the fall of the
@@ -595,6 +598,11 @@ pub fn chamber_drop(p: &[f64], at: usize, config: &TwinParams) -> Option<Chamber
     let step_up = (fall / 2.0).max(6.0 * sigma_d);
     let steps_up = (10..d.len()).any(|k| d[k] - median(&mut d[k - 10..k].to_vec()) > step_up);
     if steps_up {
+        return None;
+    }
+    // During the rise: on the plateau the piston rests at its end stop and cannot jump (a fifth
+    // independent tester's transducer steps at 40–50 s, taken back slowly, had passed).
+    if i >= required_samples(config).1 {
         return None;
     }
     let (twin, _) = twin_trace(config, n)?;
@@ -742,7 +750,10 @@ fn physically_incredible(effect: Mechanism, v: f64) -> Option<String> {
 /// orifice of another area (a partly blocked or wrong orifice: a fourth independent tester's
 /// 1.15 and 1.0 mm orifices documented as 1.25 mm were named Cf 0.84 and 0.64 with nothing
 /// said of the orifice) or air of another temperature (its −40 °C brake was named Cf 0.885).
-fn discharge_coefficient_look_alikes(scale: f64, orifice_mm: f64) -> Vec<String> {
+/// A fifth tester's logger clock 5 % off was named a gas temperature with neither listed: a
+/// release that runs slower in time looks like less flow, so a clock within ± 10 % is listed
+/// too. `with_temperature`: list the air temperature (not when it is the named cause).
+fn discharge_coefficient_look_alikes(scale: f64, orifice_mm: f64, with_temperature: bool) -> Vec<String> {
     let t = Mechanism::GasTemperature.off() * scale * scale;
     let cold = if t < GAS_TEMPERATURE_CREDIBLE_K {
         format!(", colder than {:.0} °C", GAS_TEMPERATURE_CREDIBLE_K - 273.15)
@@ -756,14 +767,40 @@ fn discharge_coefficient_look_alikes(scale: f64, orifice_mm: f64) -> Vec<String>
     )];
     // Air far colder than any service temperature, or hotter than the library's search, is no
     // look-alike worth a line.
-    if (GAS_TEMPERATURE_CREDIBLE_K - 10.0..=Mechanism::GasTemperature.descriptor().brake.search.1).contains(&t) {
+    if with_temperature
+        && (GAS_TEMPERATURE_CREDIBLE_K - 10.0..=Mechanism::GasTemperature.descriptor().brake.search.1).contains(&t)
+    {
         alike.push(format!(
             "air at {t:.0} K ({:.0} °C{cold}) through the documented orifice (the flow scales with Cf × √T: a cold \
              brake, or hot air from the compressor)",
             t - 273.15
         ));
     }
+    // Time stamps stretched by 1/scale make the release run that much slower in the data.
+    let clock = 1.0 / scale - 1.0;
+    if clock.abs() <= 0.1 {
+        alike.push(format!(
+            "a logger clock about {:.0} % {} (the release runs {} in the data, much as if the flow were × {scale:.3}; \
+             the piston's motion does not scale, so the figure is rough)",
+            100.0 * clock.abs(),
+            if clock > 0.0 { "fast" } else { "slow" },
+            if clock > 0.0 { "slower" } else { "faster" }
+        ));
+    }
     alike
+}
+
+/// What a transducer gain `gain` (named alone) cannot be told from within the parts'
+/// tolerances: a supply of `gain` × the documented one (a fifth independent tester's supply of
+/// 7.4 and 8.0 bar g, undocumented, was named a gain of 0.962 and 1.034 with nothing said of
+/// the supply).
+fn sensor_gain_look_alike(gain: f64, supply_bar_g: f64) -> String {
+    format!(
+        "a supply of {:.2} bar g where {supply_bar_g:.2} bar g is documented (a regulator set or drifted off: a \
+         transducer gain scales the plateau the same way; document `# supply_bar_g` or check the regulator to tell \
+         them apart)",
+        gain * supply_bar_g
+    )
 }
 
 /// The coldest supply air an audit names, K (−40 °C, the coldest service temperature of rail
@@ -1957,11 +1994,16 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     // Along the Cf · area · √T direction (no heat transfer), the parts the data cannot tell apart.
     let orifice_mm = data.groups.first().map_or(0.0, |g| g.config.orifice.0 * 1e3);
     if let Some((_, scale, _)) = chosen.parameter.filter(|p| p.0 == "discharge_coefficient") {
-        alternatives.extend(discharge_coefficient_look_alikes(scale, orifice_mm));
+        alternatives.extend(discharge_coefficient_look_alikes(scale, orifice_mm, true));
     } else if let [(Mechanism::GasTemperature, t, _)] = chosen.effects[..] {
-        alternatives.push(
-            discharge_coefficient_look_alikes((t / Mechanism::GasTemperature.off()).sqrt(), orifice_mm).swap_remove(0),
-        );
+        alternatives.extend(discharge_coefficient_look_alikes(
+            (t / Mechanism::GasTemperature.off()).sqrt(),
+            orifice_mm,
+            false,
+        ));
+    } else if let [(Mechanism::SensorGain, gain, _)] = chosen.effects[..] {
+        let supply = data.groups.first().map_or(0.0, |g| g.config.supply.0);
+        alternatives.push(sensor_gain_look_alike(gain, supply));
     }
     let residual_to_noise = (to_noise(base.rss), to_noise(chosen.rss));
     if !(residual_to_noise.0.is_finite() && residual_to_noise.1.is_finite()) {

@@ -430,3 +430,18 @@ fn the_open_world_sweep_is_honest_on_every_kind() {
         assert!(r.honest(), "{}\n{}", r.line(*s), r.outcome.summary());
     }
 }
+
+/// A fifth independent tester: a supply of 7.4 bar g where 7.7 is documented was named a
+/// transducer gain of 0.962 "explaining the discrepancy", with nothing said of the supply. Within
+/// the parts' tolerances the two are one: the verdict must list the supply.
+#[test]
+fn a_transducer_gain_is_not_named_without_the_supply_it_cannot_be_told_from() {
+    let nominal = pbm::TwinParams::nominal();
+    let low = plant_set(8, 45, |_| pbm::TwinParams { supply: pbm::BarG(7.4), ..nominal });
+    let out = audit(&low, AuditOptions { pairs: false, ..AuditOptions::default() }).expect("audit");
+    eprintln!("supply 7.4 bar g: {}", out.verdict_text());
+    assert_ne!(out.cause, "none", "{}", out.verdict_text());
+    if out.cause == "sensor_gain" {
+        assert!(out.alternatives.iter().any(|a| a.contains("a supply of 7.4")), "{:?}", out.alternatives);
+    }
+}

@@ -228,7 +228,8 @@ fn noise_free_pressure_trace_is_not_a_frozen_sensor() {
 /// `impossible_rate` check. The pressure comes back to the supply, which a transducer that
 /// stepped cannot do: the audit takes the releases, says what happened in a warning and answers
 /// `unexplained` (the tester's 16-release sets had all been refused as sensor faults). The same
-/// drop written into a healthy release's readings, kept to the end or taken back 13 s later, is
+/// drop written into a healthy release's readings, kept to the end or taken back 13 s later, or
+/// on the plateau and taken back (a fifth tester's transducer steps at 40–50 s had passed), is
 /// still refused as a sensor fault.
 #[test]
 fn a_piston_breaking_free_is_audited_and_a_transducer_step_is_refused() {
@@ -250,12 +251,14 @@ fn a_piston_breaking_free_is_audited_and_a_transducer_step_is_refused() {
     let manifest = std::fs::read_to_string(dir.join("manifest.csv")).unwrap();
     let file = manifest.lines().nth(1).and_then(|l| l.split(',').next()).unwrap().to_owned();
     let healthy = std::fs::read_to_string(dir.join(&file)).unwrap();
-    for until in [f64::INFINITY, 25.0] {
+    // During the rise, kept or taken back; on the plateau (the piston rests at its end stop and
+    // cannot jump), taken back.
+    for (from, until) in [(12.0, f64::INFINITY), (12.0, 25.0), (40.0, 50.0)] {
         let mut stepped = String::new();
         for line in healthy.lines() {
             let sample = line.split_once(',').and_then(|(t, a)| Some((t.parse::<f64>().ok()?, a.parse::<u16>().ok()?)));
             match sample {
-                Some((t, adc)) if (12.0..until).contains(&t) => {
+                Some((t, adc)) if (from..until).contains(&t) => {
                     let p = pbm::sensor::bar_from_adc(pbm::AdcCounts(adc)).0 - 0.4;
                     let _ = writeln!(stepped, "{t:.2},{}", pbm::sensor::adc_from_bar(pbm::units::BarG(p)).0);
                 }
@@ -268,7 +271,7 @@ fn a_piston_breaking_free_is_audited_and_a_transducer_step_is_refused() {
         let (_, skipped) = load_dataset(&dir).expect("load");
         assert_eq!(skipped.len(), 1, "until {until} s: {skipped}");
         let why = skipped.errors()[0].to_string();
-        assert!(why.contains(file.as_str()) && why.contains("sensor fault `impossible_rate` at t = 1"), "{why}");
+        assert!(why.contains(file.as_str()) && why.contains("sensor fault `impossible_rate` at t = "), "{why}");
     }
 }
 
