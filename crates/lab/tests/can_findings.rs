@@ -35,6 +35,17 @@ fn records(name: &str) -> Vec<(u64, CanFrame)> {
         .collect()
 }
 
+/// The frames of a reproducer log with their tags (`NAME.tags`, one per line: `g` genuine, `i`
+/// injected, `d` disturbed), in log order.
+fn tagged(name: &str) -> Vec<(u64, CanFrame, String)> {
+    let recs = records(&format!("{name}.log"));
+    let path = format!("{}/tests/data/can_findings/{name}.tags", env!("CARGO_MANIFEST_DIR"));
+    let tags = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let tags: Vec<String> = tags.lines().map(str::to_owned).collect();
+    assert_eq!(tags.len(), recs.len(), "{name}");
+    recs.into_iter().zip(tags).map(|((t, f), tag)| (t, f, tag)).collect()
+}
+
 fn decode(name: &str) -> Outcome {
     decode_records(&records(name))
 }
@@ -386,24 +397,18 @@ fn r3_a_recording_running_ahead_of_the_live_monitor_is_never_current() {
     for (name, current_before_noticed) in
         [("R3_recording_3s_ahead_two_lost_heartbeats_relocks", 0), ("R3_recording_0.36s_ahead_takes_over", 1)]
     {
-        let dir = format!("{}/tests/data/can_findings", env!("CARGO_MANIFEST_DIR"));
-        let bytes = std::fs::read(format!("{dir}/{name}.log")).unwrap();
-        let tags = std::fs::read_to_string(format!("{dir}/{name}.tags")).unwrap();
-        let tags: Vec<&str> = tags.lines().collect();
-        assert_eq!(tags.len(), read_log(&bytes[..]).count(), "{name}");
         let mut d = Decoder::new();
         let (mut injected_reports, mut two_streams, mut current_early) = (0, 0, 0);
-        for (i, rec) in read_log(&bytes[..]).enumerate() {
-            let rec = rec.unwrap();
-            let r = d.receive(rec.time_us, &rec.frame);
+        for (i, (time_us, frame, tag)) in tagged(name).iter().enumerate() {
+            let r = d.receive(*time_us, frame);
             two_streams += usize::from(r.two_streams);
-            if tags[i] == "i" && matches!(r.result, Ok(Report::Fault(_))) {
+            if tag == "i" && matches!(r.result, Ok(Report::Fault(_))) {
                 injected_reports += 1;
                 if two_streams == 0 && !r.stale {
                     current_early += 1;
                 } else {
                     assert!(r.stale, "{name}: line {} (injected) shown current: {r:?}", i + 1);
-                    assert!(!d.is_current(rec.time_us, rec.time_us), "{name}: line {}", i + 1);
+                    assert!(!d.is_current(*time_us, *time_us), "{name}: line {}", i + 1);
                 }
             }
         }
@@ -425,22 +430,15 @@ fn r3_a_recording_running_ahead_of_the_live_monitor_is_never_current() {
 #[test]
 fn r4_a_heartbeat_stamped_far_ahead_does_not_lock_out_the_genuine_frames_after_it() {
     for name in ["R4_heartbeat_stamped_4096s_ahead_locks_out", "R4_heartbeat_stamped_1e8s_ahead"] {
-        let dir = format!("{}/tests/data/can_findings", env!("CARGO_MANIFEST_DIR"));
-        let bytes = std::fs::read(format!("{dir}/{name}.log")).unwrap();
-        let tags = std::fs::read_to_string(format!("{dir}/{name}.tags")).unwrap();
-        let tags: Vec<&str> = tags.lines().collect();
-        assert_eq!(tags.len(), read_log(&bytes[..]).count(), "{name}");
         let mut d = Decoder::new();
         let (mut back, mut genuine, mut current, mut rejected) = (0, 0, 0, 0);
-        for (i, rec) in read_log(&bytes[..]).enumerate() {
-            let rec = rec.unwrap();
-            let r = d.receive(rec.time_us, &rec.frame);
+        for (time_us, frame, tag) in &tagged(name) {
+            let r = d.receive(*time_us, frame);
             back += usize::from(r.clock_back_us.is_some());
-            if tags[i] == "g" {
+            if tag == "g" {
                 genuine += 1;
                 rejected += usize::from(r.result.is_err());
-                current +=
-                    usize::from(matches!(r.result, Ok(Report::Fault(_))) && d.is_current(rec.time_us, rec.time_us));
+                current += usize::from(matches!(r.result, Ok(Report::Fault(_))) && d.is_current(*time_us, *time_us));
             }
         }
         assert!(rejected <= 1, "{name}: {rejected} genuine frames rejected");
@@ -480,21 +478,15 @@ fn r4_a_slowly_wandering_latency_is_followed_without_flagging_genuine_frames() {
 #[test]
 fn r5_a_frame_stamped_inside_an_outage_does_not_undo_the_genuine_frames_after_it() {
     for name in ["R5_outage_then_one_genuine_frame_logged_late", "R5_old_frames_inserted_after_an_outage"] {
-        let dir = format!("{}/tests/data/can_findings", env!("CARGO_MANIFEST_DIR"));
-        let bytes = std::fs::read(format!("{dir}/{name}.log")).unwrap();
-        let tags = std::fs::read_to_string(format!("{dir}/{name}.tags")).unwrap();
-        let tags: Vec<&str> = tags.lines().collect();
-        assert_eq!(tags.len(), read_log(&bytes[..]).count(), "{name}");
         let mut d = Decoder::new();
         let mut rejected = 0;
-        for (i, rec) in read_log(&bytes[..]).enumerate() {
-            let rec = rec.unwrap();
-            let r = d.receive(rec.time_us, &rec.frame);
+        for (i, (time_us, frame, tag)) in tagged(name).iter().enumerate() {
+            let r = d.receive(*time_us, frame);
             assert!(r.clock_back_us.is_none(), "{name}: line {}: the receiver went back: {r:?}", i + 1);
-            if tags[i] == "g" {
+            if tag == "g" {
                 rejected += usize::from(r.result.is_err());
             } else {
-                assert!(!(matches!(r.result, Ok(Report::Fault(_))) && d.is_current(rec.time_us, rec.time_us)));
+                assert!(!(matches!(r.result, Ok(Report::Fault(_))) && d.is_current(*time_us, *time_us)));
             }
         }
         // The genuine frame logged late is tagged `d` (disturbed); none tagged `g` is rejected.
