@@ -25,8 +25,9 @@
 //!    `# sensor_supply_v: 5` is never read as a 5 bar supply. A trace that is **no release** is
 //!    refused with its reason (see [`load_dataset`]): shorter than [`MIN_SAMPLES`], a sensor
 //!    fault that destroys the signal ([`signal_destroying_fault`], [`refuses`]; an
-//!    `impossible_rate` drop that the pressure comes back from is the chamber's, not the
-//!    transducer's: [`chamber_drop`], audited with a warning), too little
+//!    `impossible_rate` drop during the rise that the pressure comes back from may be the
+//!    chamber's, which a transducer step that stays cannot be: [`chamber_drop`], audited with a
+//!    warning), too little
 //!    pressure rise ([`required_rise_bar`], [`MIN_RISE_BAR`]), a chamber not vented at the
 //!    release command ([`START_MAX_BAR`]), or cut off before the plateau
 //!    ([`required_samples`]). Releases of one configuration have the same noise-free
@@ -469,26 +470,21 @@ fn audit_trace(data: &Dataset, row: &ManifestRow) -> Result<AuditTrace, FileErro
         return Err(FileError::new(name, 0, format!("only {} samples; the audit needs ≥ 2 s at 100 Hz", tr.t_s.len())));
     }
     let (config, unknown) = config_from_meta(&tr.metadata).map_err(|e| FileError::new(name, 0, format!("{e:#}")))?;
-    let mut drop = None;
-    match signal_destroying_fault(&tr) {
-        Err(e) => return Err(FileError::new(name, 0, format!("{e:#}"))),
-        Ok(Some((i, SensorFault::ImpossibleRate))) if chamber_drop(&tr.pressures_bar(), i, &config).is_some() => {
-            drop = chamber_drop(&tr.pressures_bar(), i, &config);
-        }
-        Ok(Some((i, fault))) => {
-            return Err(FileError::new(
-                name,
-                tr.lines.get(i).copied().unwrap_or(0),
-                format!(
-                    "sensor fault `{}` at t = {:.2} s ({fault}): no release signal the audit can fit",
-                    fault.label(),
-                    tr.t_s[i]
-                ),
-            ))
-        }
-        Ok(None) => {}
-    }
     let p = tr.pressures_bar();
+    let fault = signal_destroying_fault(&tr).map_err(|e| FileError::new(name, 0, format!("{e:#}")))?;
+    // An `impossible_rate` that is a drop the pressure comes back from is audited, with its warning.
+    let drop = fault.filter(|f| f.1 == SensorFault::ImpossibleRate).and_then(|(i, _)| chamber_drop(&p, i, &config));
+    if let (Some((i, fault)), None) = (fault, drop) {
+        return Err(FileError::new(
+            name,
+            tr.lines.get(i).copied().unwrap_or(0),
+            format!(
+                "sensor fault `{}` at t = {:.2} s ({fault}): no release signal the audit can fit",
+                fault.label(),
+                tr.t_s[i]
+            ),
+        ));
+    }
     if p.iter().any(|v| !v.is_finite()) {
         return Err(FileError::new(name, 0, "a pressure is NaN or infinite"));
     }
