@@ -1950,34 +1950,24 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
         .take(3)
         .collect();
     let to_noise = |rss: f64| (rss / n.max(1) as f64).sqrt();
-    // A partial explanation must at least halve the residual: a cause that leaves most of the
-    // discrepancy (a discharge coefficient of 0.6 for a valve that opens 4.7 s late) is not one.
+    // A named cause is not earned when it leaves most of the discrepancy (a partial explanation
+    // must at least halve the residual: a discharge coefficient of 0.6 for a valve that opens
+    // 4.7 s late is not one), or when the releases differ from each other by more than their
+    // mean differs from the twin (a cause fitted to the mean). Said, never named.
     let mut flagged = flagged;
     let (rb, rc) = (to_noise(base.rss), to_noise(chosen.rss));
-    if terms(&chosen) > 0 && explains_too_little(rb, rc) {
-        flagged.insert(
-            0,
-            format!(
-                "{}: leaves {rc:.1}× of the base's {rb:.1}× the noise, too little explained to be the cause",
-                candidate_text(&chosen)
-            ),
-        );
-        chosen = base.clone();
-        alternatives.clear();
-    }
-    // Releases that differ from each other by more than their mean differs from the twin: a
-    // cause fitted to the mean is not earned.
     let spread = release_spread(data);
-    if let Some(r) = spread.as_ref().filter(|r| terms(&chosen) > 0 && r.matters(to_noise(base.rss))) {
-        flagged.insert(
-            0,
-            format!(
-                "{}: fits the mean of {} releases that differ from each other by {:.3} bar",
-                candidate_text(&chosen),
-                r.releases,
-                r.spread_bar
-            ),
-        );
+    let not_earned = if terms(&chosen) == 0 {
+        None
+    } else if explains_too_little(rb, rc) {
+        Some(format!("leaves {rc:.1}× of the base's {rb:.1}× the noise, too little explained to be the cause"))
+    } else {
+        spread.as_ref().filter(|r| r.matters(rb)).map(|r| {
+            format!("fits the mean of {} releases that differ from each other by {:.3} bar", r.releases, r.spread_bar)
+        })
+    };
+    if let Some(why) = not_earned {
+        flagged.insert(0, format!("{}: {why}", candidate_text(&chosen)));
         chosen = base.clone();
         alternatives.clear();
     }
