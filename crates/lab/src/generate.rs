@@ -257,11 +257,24 @@ pub fn draw_fault(loco: &TwinParams, class: FaultClass, rng: &mut impl Rng) -> T
 /// A noise-free simulated release: gauge pressure (bar) and travel (mm) at 100 Hz, sample `i`
 /// at `t = i · 10 ms` (sample 0 is the vented chamber at the release command).
 pub fn simulate_plant(params: &TwinParams, step_s: f64, samples: usize) -> Result<(Vec<f64>, Vec<f64>)> {
+    simulate_plant_with(params, step_s, samples, |_, _| {})
+}
+
+/// [`simulate_plant`] with `condition(twin, t_s)` called before each sample: the time-varying
+/// conditions of the open-world cases ([`crate::open_world`], through
+/// [`ReferenceTwin::retune`]).
+pub fn simulate_plant_with(
+    params: &TwinParams,
+    step_s: f64,
+    samples: usize,
+    mut condition: impl FnMut(&mut ReferenceTwin, f64),
+) -> Result<(Vec<f64>, Vec<f64>)> {
     let mut twin =
         ReferenceTwin::new(params).map_err(|e| anyhow::anyhow!("invalid plant parameters: {e}"))?.with_step(step_s);
     let mut p = Vec::with_capacity(samples);
     let mut x = Vec::with_capacity(samples);
-    for _ in 0..samples {
+    for i in 0..samples {
+        condition(&mut twin, i as f64 * SAMPLE_PERIOD_S);
         p.push(twin.sensor_bar_g());
         x.push(twin.state.x * 1e3);
         twin.advance(SAMPLE_PERIOD_S, true);

@@ -1,6 +1,6 @@
 //! The audit in an open world (issue 17, item 6): seeded cases with an effect the audit's
 //! library does not hold ([`Foreign`], written here for the test only, in the f64 reference
-//! plant through [`ReferenceTwin::retune`] or on the transducer), alone or mixed with a library
+//! plant through [`crate::reference::ReferenceTwin::retune`] or on the transducer), alone or mixed with a library
 //! mechanism, and what the verdict says of it. The audit must be *honest*: never `none` when the
 //! base model is wrong (its NMSE at least 3× what the noise alone gives, i.e. a residual of
 //! √3 × the noise σ of the mean release or more). Also counted: a library cause named as
@@ -10,13 +10,11 @@
 
 use crate::audit::{audit, data_from_traces, AuditData, AuditOptions, AuditOutcome};
 use crate::audit_sweep::{draw_truth, RELEASES_PER_CASE};
-use crate::generate::{fleet, sense, GENERATE_STEP_S, TRACE_SAMPLES};
+use crate::generate::{fleet, sense, simulate_plant_with, GENERATE_STEP_S, TRACE_SAMPLES};
 use crate::random::unit;
-use crate::reference::ReferenceTwin;
 use anyhow::Result;
 use pbm::mechanism::Mechanism;
 use pbm::sensor::bar_from_adc;
-use pbm::twin::SAMPLE_PERIOD_S;
 use pbm::units::{BarG, Meters};
 use pbm::AdcCounts;
 use rand_chacha::ChaCha8Rng;
@@ -142,18 +140,11 @@ impl Foreign {
 
 /// A noise-free release of `plant` with `foreign`, bar g at 100 Hz.
 pub fn simulate_foreign(plant: &pbm::TwinParams, foreign: Foreign) -> Result<Vec<f64>> {
-    let mut twin = ReferenceTwin::new(plant)
-        .map_err(|e| anyhow::anyhow!("invalid plant parameters: {e}"))?
-        .with_step(GENERATE_STEP_S);
-    let mut p = Vec::with_capacity(TRACE_SAMPLES);
-    for i in 0..TRACE_SAMPLES {
-        let t = i as f64 * SAMPLE_PERIOD_S;
+    let (p, _) = simulate_plant_with(plant, GENERATE_STEP_S, TRACE_SAMPLES, |twin, t| {
         let (now, x) = (twin.pressure_bar_g(), twin.state.x * 1e3);
         twin.retune(|q| foreign.condition(plant, q, t, now, x));
-        p.push(foreign.sensed(twin.sensor_bar_g()));
-        twin.advance(SAMPLE_PERIOD_S, true);
-    }
-    Ok(p)
+    })?;
+    Ok(p.into_iter().map(|v| foreign.sensed(v)).collect())
 }
 
 /// An open-world case: the foreign effect, the library mechanism mixed in (if any), the data.
