@@ -5,8 +5,8 @@ use pbm::can::codec::status_link;
 use pbm::can::layout::{self, FAULT_REPORT, STATUS};
 use pbm::can::reporter::{FAULT_MIN_GAP_SAMPLES, FAULT_REPEAT_SAMPLES, STATUS_PERIOD_SAMPLES};
 use pbm::can::{
-    decode_frame, encode_fault, encode_status, quantize_fault, CanFrame, CanReporter, Decoder, FrameError, Identity,
-    Report, StatusLink,
+    decode_frame, encode_fault, encode_session, encode_status, quantize_fault, CanFrame, CanReporter, Decoder,
+    FrameError, Identity, PowerUp, Report, SessionLink, StatusLink,
 };
 use pbm::report::{EstimatorState, FaultReport, NoDiagnosis, StatusReport, Verdict};
 use pbm::sensor::SensorFault;
@@ -173,6 +173,7 @@ proptest! {
                 let re = match report {
                     Report::Fault(r) => encode_fault(&r, counter as u8, id),
                     Report::Status(s) => encode_status(&s, status_link(bits_of(&f))),
+                    Report::Session(l) => encode_session(l),
                 };
                 prop_assert_eq!(re, f);
             }
@@ -189,6 +190,7 @@ proptest! {
             Err(FrameError::WrongCrc { .. }) | Err(FrameError::InvalidSignal { .. }) => {}
             Ok((Report::Fault(r), c)) => prop_assert_eq!(encode_fault(&r, c as u8, ID), f),
             Ok((Report::Status(s), _)) => prop_assert_eq!(encode_status(&s, status_link(bits_of(&f))), f),
+            Ok((Report::Session(l), _)) => prop_assert_eq!(encode_session(l), f),
             Err(e) => prop_assert!(false, "unexpected {:?}", e),
         }
     }
@@ -262,6 +264,17 @@ fn known_answer_vectors() {
     let crc_input: Vec<u8> = [0x51, 0x2F].iter().chain(&payload[1..]).copied().collect();
     payload[0] = reference_crc(&crc_input);
     assert_eq!(s.data(), payload);
+    // Session (layout 3): heartbeat counter 0x9A5 in bits 8..19, locomotive 5 at 20, reserved
+    // 26..31, release count 0x8765_4323 (release number 0x23 = 35) at 32..63; the CRC covers
+    // data ID 0x3F52 (LE), then bytes 1..7.
+    let x = encode_session(SessionLink { counter: 0x9A5, locomotive: 5, release_count: 0x8765_4323 });
+    assert_eq!(x.raw_id(), 0x18FF_5280);
+    let xb = (0x9A5u64 << 8) | (5 << 20) | (0x8765_4323u64 << 32);
+    let mut payload = xb.to_le_bytes();
+    let crc_input: Vec<u8> = [0x52, 0x3F].iter().chain(&payload[1..]).copied().collect();
+    payload[0] = reference_crc(&crc_input);
+    assert_eq!(x.data(), payload);
+    assert_eq!(&x.data()[1..], [0xA5, 0x59, 0x00, 0x23, 0x43, 0x65, 0x87]);
     // The core's CRC equals the crate's on random inputs.
     let mut x = 0x1234_5678_9ABC_DEF0u64;
     for len in 0..64usize {
@@ -306,7 +319,7 @@ fn invalid_signal_values_with_good_crc_are_flagged() {
 /// 2.3 s and changes at 5.3 s (repeated at 1 Hz while the release is active), `(µs, frame)`.
 fn genuine_stream(seconds: u32) -> Vec<(u64, CanFrame)> {
     let mut rep = CanReporter::new();
-    rep.set_identity(Identity { locomotive: 5, release: 2 });
+    rep.set_identity(PowerUp { locomotive: 5, release_count: 2 });
     rep.new_release();
     let mut out = Vec::new();
     let mut fault = example_fault();
@@ -446,9 +459,11 @@ fn reporter_is_deterministic() {
         out
     };
     assert_eq!(run(), run());
-    assert_eq!(run().len(), 5 + 5);
+    // 5 status frames, 5 fault reports (at once, then repeated at 1 Hz) and the session frame
+    // after the first status frame.
+    assert_eq!(run().len(), 5 + 5 + 1);
     // Sanity on the layout constants used by the schedule.
-    assert_eq!(layout::MESSAGES.len(), 2);
+    assert_eq!(layout::MESSAGES.len(), 3);
 }
 
 /// Beyond single bits: every 2-bit error anywhere in the 8 data bytes is detected, checked
@@ -585,9 +600,9 @@ fn held_report_turns_stale_without_heartbeat() {
 
 // ---- what the pipeline transmits ------------------------------------------------------------
 
-/// Checks one frame the pipeline wants to send: one of the two DBC messages, extended id,
+/// Checks one frame the pipeline wants to send: one of the three DBC messages, extended id,
 /// 8-byte data frame, and it decodes cleanly in sequence.
-fn assert_report_frame(f: &CanFrame, dec: &mut Decoder, t_us: u64, seen: &mut [u32; 2]) {
+fn assert_report_frame(f: &CanFrame, dec: &mut Decoder, t_us: u64, seen: &mut [u32; 3]) {
     let idx = layout::MESSAGES
         .iter()
         .position(|m| m.raw_id() == f.raw_id())
@@ -603,7 +618,7 @@ fn assert_report_frame(f: &CanFrame, dec: &mut Decoder, t_us: u64, seen: &mut [u
 /// every class (and sensor faults) through the one per-sample pipeline shared with the
 /// firmware, with every frame checked and decoded in sequence.
 #[test]
-fn pipeline_emits_only_the_two_report_ids() {
+fn pipeline_emits_only_the_three_report_ids() {
     use pbm::pipeline::Pipeline;
     use pbm::sensor::adc_from_bar;
     use pbm::{AdcCounts, Twin, TwinParams};
@@ -617,7 +632,7 @@ fn pipeline_emits_only_the_two_report_ids() {
     ];
     let mut pipe = Pipeline::nominal().unwrap();
     let mut dec = Decoder::new();
-    let mut seen = [0u32; 2];
+    let mut seen = [0u32; 3];
     let mut n = 0u64;
     for (k, params) in releases.iter().enumerate() {
         let mut plant = Twin::new(params).unwrap();
@@ -640,20 +655,22 @@ fn pipeline_emits_only_the_two_report_ids() {
     assert_eq!(pipe.close(), None);
     assert!(seen[0] >= releases.len() as u32, "fault reports sent: {seen:?}");
     assert_eq!(u64::from(seen[1]), n.div_ceil(100), "status at 1 Hz");
+    // Session frames: at power-up, at each new release number (5 releases) and every 10 s.
+    assert!(u64::from(seen[2]) >= n.div_ceil(1000) && u64::from(seen[2]) <= n.div_ceil(1000) + 6, "{seen:?}");
 }
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(48))]
 
     /// Whatever the inputs (any ADC code, even above 12 bits; any valve pattern), the pipeline
-    /// emits only the two report frames, each decoding cleanly in sequence.
+    /// emits only the three report frames, each decoding cleanly in sequence.
     #[test]
     fn pipeline_emits_only_report_frames_for_any_input(
         segments in prop::collection::vec((any::<bool>(), 1u32..700, any::<u16>(), -40i32..40), 1..8),
     ) {
         let mut pipe = pbm::pipeline::Pipeline::nominal().unwrap();
         let mut dec = Decoder::new();
-        let mut seen = [0u32; 2];
+        let mut seen = [0u32; 3];
         let mut n = 0u64;
         for (open, len, start, slope) in segments {
             for i in 0..len {
@@ -705,7 +722,7 @@ proptest! {
 /// (100 Hz; its time since release is set from `n`), `(µs, frame)`, transmit order.
 fn stream_of(seconds: u32, fault: impl Fn(u32) -> Option<FaultReport>) -> Vec<(u64, CanFrame)> {
     let mut rep = CanReporter::new();
-    rep.set_identity(Identity { locomotive: 5, release: 2 });
+    rep.set_identity(PowerUp { locomotive: 5, release_count: 2 });
     rep.new_release();
     let mut out = Vec::new();
     for n in 0..seconds * 100 {
@@ -719,6 +736,10 @@ fn stream_of(seconds: u32, fault: impl Fn(u32) -> Option<FaultReport>) -> Vec<(u
 
 fn is_status(f: &CanFrame) -> bool {
     f.raw_id() == STATUS.raw_id()
+}
+
+fn is_fault(f: &CanFrame) -> bool {
+    f.raw_id() == FAULT_REPORT.raw_id()
 }
 
 /// Decodes a stream; returns the flags and the losses reported (status, fault reports).
@@ -784,7 +805,7 @@ fn a_latency_step_flags_one_heartbeat_then_resynchronises() {
                 g.iter().map(|&(t, f)| (if t >= from { t + step_us } else { t }, f)).collect();
             let (fl, ls, lf) = run(&s);
             let statuses = fl.iter().zip(&s).filter(|(x, e)| x.is_some() && is_status(&e.1)).count();
-            let faults = fl.iter().zip(&s).filter(|(x, e)| x.is_some() && !is_status(&e.1)).count();
+            let faults = fl.iter().zip(&s).filter(|(x, e)| x.is_some() && is_fault(&e.1)).count();
             assert!(statuses <= 1 && faults <= 1, "step {step_us} µs at {from}: {fl:?}");
             let late = fl.iter().zip(&s).filter(|(x, e)| x.is_some() && e.0 > from + 2_500_000).count();
             assert_eq!(late, 0, "step {step_us} µs at {from}: resynchronised within two frames: {fl:?}");
@@ -882,7 +903,7 @@ fn a_lost_report_does_not_get_the_next_unchanged_one_rejected() {
         _ => Some(x),
     });
     assert_eq!(run(&g), (vec![None; g.len()], 0, 0));
-    let faults: Vec<usize> = (0..g.len()).filter(|&i| !is_status(&g[i].1)).collect();
+    let faults: Vec<usize> = (0..g.len()).filter(|&i| is_fault(&g[i].1)).collect();
     assert!(faults.len() >= 3 && g[faults[1]].0 == 2_600_000 && g[faults[2]].0 == 2_900_000);
     let mut s = g.clone();
     s.remove(faults[1]);
@@ -902,7 +923,7 @@ fn a_lost_report_does_not_get_the_next_unchanged_one_rejected() {
 fn a_status_frame_overtaking_its_ticks_report_is_no_loss() {
     let g = stream_of(8, |n| (n >= 300).then(example_fault));
     let pairs: Vec<usize> =
-        (1..g.len()).filter(|&i| is_status(&g[i].1) && !is_status(&g[i - 1].1) && g[i].0 == g[i - 1].0).collect();
+        (1..g.len()).filter(|&i| is_status(&g[i].1) && is_fault(&g[i - 1].1) && g[i].0 == g[i - 1].0).collect();
     assert!(pairs.len() >= 3, "fault report and status frame share ticks");
     for &i in &pairs {
         let mut s = g.clone();
@@ -962,11 +983,11 @@ fn fault_reports_after_a_heartbeat_timeout_are_not_current() {
         let r = d.receive(*t, f);
         assert!(r.result.is_ok(), "{t}: {r:?}");
         let silent = (8_050_001..14_000_000).contains(t);
-        assert_eq!(r.stale, silent && !is_status(f), "{t}");
+        assert_eq!(r.stale, silent && is_fault(f), "{t}");
         if r.stale {
             stale += 1;
             assert!(!d.is_current(*t, *t));
-        } else if !is_status(f) {
+        } else if is_fault(f) {
             assert!(d.is_current(*t, *t), "{t}");
         }
     }
@@ -1164,7 +1185,7 @@ fn the_report_after_one_delayed_within_the_tolerance_is_accepted() {
     let g = stream_of(6, |n| {
         (n >= 230).then(|| FaultReport { leak_um: 800 + (n.min(400) / 10) as u16, ..example_fault() })
     });
-    let reports: Vec<usize> = (0..g.len()).filter(|&i| !is_status(&g[i].1)).collect();
+    let reports: Vec<usize> = (0..g.len()).filter(|&i| is_fault(&g[i].1)).collect();
     // Every report that is followed by another within 150 ms.
     let mut tried = 0;
     for w in reports.windows(2) {
@@ -1323,7 +1344,7 @@ fn a_report_from_before_the_monitor_powered_up_is_replaced_by_the_genuine_one() 
         assert!(r.result.is_ok(), "{t}: {r:?}");
         if i == at {
             assert!(r.stale, "not current: {r:?}");
-        } else if !is_status(f) {
+        } else if is_fault(f) {
             assert!(!r.stale && d.is_current(*t, *t), "{t}: {r:?}");
         }
     }
@@ -1337,18 +1358,23 @@ fn a_report_from_before_the_monitor_powered_up_is_replaced_by_the_genuine_one() 
 #[test]
 fn a_monitor_whose_counter_wrapped_is_believed_from_its_second_report() {
     let g = genuine_stream(20);
-    // The receiver joins at 10 s; the heartbeat counter is 4096 lower than the uptime.
+    // The receiver joins at 10 s; the heartbeat counter is 4096 lower than the uptime (10 lower
+    // here: the session frames keep their schedule, every 10th heartbeat).
     let s: Vec<(u64, CanFrame)> = g
         .iter()
         .filter(|(t, _)| *t >= 10_000_000)
         .map(|&(t, f)| {
-            if !is_status(&f) {
+            if is_fault(&f) {
                 return (t, f);
+            }
+            if !is_status(&f) {
+                let Ok((Report::Session(link), _)) = decode_frame(&f, ID) else { unreachable!() };
+                return (t, encode_session(SessionLink { counter: link.counter.wrapping_sub(10) % 4096, ..link }));
             }
             let link = status_link(bits_of(&f));
             let (report, _) = decode_frame(&f, link.identity).unwrap();
             let Report::Status(st) = report else { unreachable!() };
-            (t, encode_status(&st, StatusLink { counter: link.counter.wrapping_sub(6) % 4096, ..link }))
+            (t, encode_status(&st, StatusLink { counter: link.counter.wrapping_sub(10) % 4096, ..link }))
         })
         .collect();
     let mut d = Decoder::new();
@@ -1356,7 +1382,7 @@ fn a_monitor_whose_counter_wrapped_is_believed_from_its_second_report() {
     for (t, f) in &s {
         let r = d.receive(*t, f);
         assert!(r.result.is_ok(), "{t}: {r:?}");
-        if !is_status(f) {
+        if is_fault(f) {
             faults += 1;
             assert_eq!(r.stale, faults == 1, "{t}: only the first report is not current: {r:?}");
         }
@@ -1444,7 +1470,7 @@ fn fast_stream(seconds: u32) -> Vec<(u64, CanFrame)> {
 #[test]
 fn bursts_of_lost_fault_reports_reject_and_withdraw_nothing() {
     let g = fast_stream(20);
-    let faults: Vec<usize> = (0..g.len()).filter(|&i| !is_status(&g[i].1)).collect();
+    let faults: Vec<usize> = (0..g.len()).filter(|&i| is_fault(&g[i].1)).collect();
     for burst in [8usize, 10, 12, 14, 15, 16, 20, 31, 33] {
         for start in [20usize, 37, 55] {
             let cut: Vec<usize> = faults[start..start + burst].to_vec();
@@ -1470,7 +1496,7 @@ fn bursts_of_lost_fault_reports_reject_and_withdraw_nothing() {
 fn a_delayed_first_report_does_not_get_the_rest_of_the_release_rejected() {
     let g = genuine_stream(20);
     // The first fault report (2.3 s) moved to 3.5 s, after the repeat of 3.3 s.
-    let first = g.iter().position(|(_, f)| !is_status(f)).unwrap();
+    let first = g.iter().position(|(_, f)| is_fault(f)).unwrap();
     let mut s = g.clone();
     let (_, f) = s.remove(first);
     let at = s.iter().position(|(t, _)| *t > 3_500_000).unwrap();

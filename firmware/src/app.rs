@@ -45,7 +45,7 @@ use crate::adc::{SampleSource, ValveCommand};
 
 /// Depth of the sample → monitor channel (samples).
 pub const SAMPLE_QUEUE: usize = 4;
-/// Depth of the monitor → CAN channel (frames; at most two per sample).
+/// Depth of the monitor → CAN channel (frames; at most three per sample).
 pub const FRAME_QUEUE: usize = 8;
 /// Watchdog check period.
 pub const WATCHDOG_PERIOD: Duration = Duration::from_millis(500);
@@ -281,14 +281,15 @@ pub fn pipeline() -> Result<Pipeline, pbm::ParamError> {
 
 /// Runs the core pipeline (monitor, diagnosis policy, CAN schedule) on every sample; returns
 /// after the end of the input (never on a board). `cycles` times each `Pipeline::step`;
-/// `identity` is the locomotive and release number the CAN frames carry.
-pub async fn monitor_loop<C: CycleCounter>(cycles: C, identity: pbm::can::Identity) {
+/// `power_up` is the locomotive and the release count kept from before (the CAN frames carry
+/// both).
+pub async fn monitor_loop<C: CycleCounter>(cycles: C, power_up: pbm::can::PowerUp) {
     // Built here, in the task's own static storage, rather than in `main` and moved in: the
     // pipeline is about 2.4 KiB and every move of it is a stack copy.
     let Ok(mut pipeline) = pipeline() else {
         defmt::panic!("monitor: twin parameters rejected");
     };
-    pipeline.set_identity(identity);
+    pipeline.set_identity(power_up);
     let mut stats = CycleStats { n: 0, total: 0, max: 0, max_at: 0 };
     loop {
         match SAMPLES.receive().await {

@@ -7,7 +7,9 @@
 //! fault report, the status frame carries them), then data bytes 1..8. Byte 1 starts with the
 //! message's counter (4 bits in the fault report, 12 in the status frame). The data ID differs
 //! per message, so a frame that shows up under the wrong identifier fails its CRC; the identity
-//! in the fault report's CRC ties each report to one locomotive and one release.
+//! in the fault report's CRC ties each report to one locomotive and one release. The session
+//! frame (layout 3) carries the full release count, of which the release number is the low 6
+//! bits, so a receiver tells a release from the one 64 releases earlier.
 
 use super::frame::CanFrame;
 use super::layout::{self as l, Message, Signal};
@@ -140,6 +142,15 @@ pub enum FrameError {
         /// Release number received.
         got: u8,
     },
+    /// A session frame whose release count does not follow what the receiver knows of the
+    /// locomotive: behind the newest count seen (a recording of an old session), further ahead
+    /// than one release a second since allows, or not the count of the session it belongs to.
+    WrongReleaseCount {
+        /// The count the receiver knows (the newest seen from the locomotive, or the session's).
+        known: u32,
+        /// The count received.
+        got: u32,
+    },
     /// A fault report with no live heartbeat to attribute it to (before the first status frame
     /// or after the heartbeat was lost): its locomotive and release cannot be checked.
     NoHeartbeat,
@@ -166,6 +177,7 @@ impl FrameError {
             Self::RateExceeded { .. } => "rate_exceeded",
             Self::ForeignSender { .. } => "foreign_sender",
             Self::WrongRelease { .. } => "wrong_release",
+            Self::WrongReleaseCount { .. } => "wrong_release_count",
             Self::NoHeartbeat => "no_heartbeat",
             Self::InvalidSignal { .. } => "invalid_signal",
         }
@@ -188,6 +200,12 @@ impl core::fmt::Display for FrameError {
             Self::RateExceeded { gap_ms } => write!(f, "rate exceeded: {gap_ms} ms after the previous frame"),
             Self::ForeignSender { locomotive } => write!(f, "foreign sender: locomotive {locomotive}"),
             Self::WrongRelease { expected, got } => write!(f, "release {got} went backwards (expected {expected})"),
+            Self::WrongReleaseCount { known, got } if got < known => {
+                write!(f, "release count {got} is behind {known}, seen before from this locomotive (an old recording)")
+            }
+            Self::WrongReleaseCount { known, got } => {
+                write!(f, "release count {got} does not follow {known} (further on than the time allows, or not this session's)")
+            }
             Self::NoHeartbeat => write!(f, "no heartbeat to attribute it to"),
             Self::InvalidSignal { signal, raw } => write!(f, "invalid value {raw} in signal {signal}"),
         }
@@ -204,6 +222,8 @@ pub enum Report {
     Fault(FaultReport),
     /// A status/heartbeat.
     Status(StatusReport),
+    /// A session frame: the sender's full release count.
+    Session(SessionLink),
 }
 
 /// Which of the monitor's messages a frame is.
@@ -213,6 +233,8 @@ pub enum MessageKind {
     Fault = 0,
     /// [`l::STATUS`].
     Status = 1,
+    /// [`l::SESSION`].
+    Session = 2,
 }
 
 impl MessageKind {
@@ -221,6 +243,7 @@ impl MessageKind {
         match self {
             Self::Fault => &l::FAULT_REPORT,
             Self::Status => &l::STATUS,
+            Self::Session => &l::SESSION,
         }
     }
 
@@ -231,6 +254,7 @@ impl MessageKind {
         match (extended, id) {
             (true, x) if x == l::FAULT_REPORT.raw_id() => Ok(Self::Fault),
             (true, x) if x == l::STATUS.raw_id() => Ok(Self::Status),
+            (true, x) if x == l::SESSION.raw_id() => Ok(Self::Session),
             _ => Err(FrameError::UnknownId { id, extended }),
         }
     }
@@ -239,12 +263,21 @@ impl MessageKind {
 /// The E2E CRC of an 8-byte payload for a data ID (byte 0 of the payload is not included);
 /// `identity` (the fault report's) goes into the CRC after the data ID, not on the bus.
 pub fn e2e_crc(data_id: u16, identity: Option<Identity>, payload: &[u8; 8]) -> u8 {
-    let mut crc = crc8_update(0xFF, &data_id.to_le_bytes());
+    // One pass over the bytes the CRC covers, laid out in a buffer (one CRC loop in the image
+    // instead of three: flash).
+    let [id_lo, id_hi] = data_id.to_le_bytes();
+    let mut covered = [id_lo, id_hi, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+    let mut n = 2;
     if let Some(id) = identity {
         let id = id.masked();
-        crc = crc8_update(crc, &[id.locomotive, id.release]);
+        covered[2] = id.locomotive;
+        covered[3] = id.release;
+        n = 4;
     }
-    crc8_update(crc, payload.get(1..).unwrap_or(&[])) ^ 0xFF
+    for (slot, &b) in covered.iter_mut().skip(n).zip(payload.iter().skip(1)) {
+        *slot = b;
+    }
+    crc8_update(0xFF, covered.get(..n + 7).unwrap_or(&covered)) ^ 0xFF
 }
 
 fn seal(msg: &Message, identity: Option<Identity>, bits: u64) -> CanFrame {
@@ -265,8 +298,14 @@ fn quant(v: u16, per_lsb: u16) -> u64 {
 /// Quantisation (see [`quantize_fault`]): time to 0.1 s, supply to 5 mbar, leak to 1 µm, each
 /// rounded to nearest and saturated to its signal's range.
 pub fn encode_fault(r: &FaultReport, counter: u8, identity: Identity) -> CanFrame {
+    seal_fault(fault_content_bits(r), r.time_since_release_cs, counter, identity)
+}
+
+/// The payload bits of a fault report's content: everything but the CRC, the counter and the
+/// time since release (the verdict, completed flag, supply and leak at CAN resolution). Two
+/// reports with the same content bits say the same on the bus.
+pub fn fault_content_bits(r: &FaultReport) -> u64 {
     let mut bits = 0u64;
-    l::FAULT_COUNTER.put(&mut bits, u64::from(counter & 0xF));
     let (diag, conf, reason) = match r.verdict {
         Verdict::Class { class, confidence_pct } => (class as u8, confidence_pct, l::reason::NONE),
         Verdict::CannotDiagnose(why) => (l::DIAGNOSIS_CANNOT_DIAGNOSE, 0, reason_code(why)),
@@ -275,9 +314,17 @@ pub fn encode_fault(r: &FaultReport, counter: u8, identity: Identity) -> CanFram
     l::CONFIDENCE.put(&mut bits, u64::from(conf));
     l::NO_DIAGNOSIS_REASON.put(&mut bits, u64::from(reason));
     l::RELEASE_COMPLETED.put(&mut bits, u64::from(r.release_completed));
-    l::TIME_SINCE_RELEASE.put(&mut bits, quant(r.time_since_release_cs, l::TIME_CS_PER_LSB));
     l::SUPPLY_PRESSURE.put(&mut bits, quant(r.supply_mbar, l::SUPPLY_MBAR_PER_LSB));
     l::LEAK_DIAMETER.put(&mut bits, quant(r.leak_um, l::LEAK_UM_PER_LSB));
+    bits
+}
+
+/// A fault report frame of the given content bits ([`fault_content_bits`]), time since release
+/// (10 ms units), counter and identity.
+pub fn seal_fault(content: u64, time_since_release_cs: u16, counter: u8, identity: Identity) -> CanFrame {
+    let mut bits = content;
+    l::FAULT_COUNTER.put(&mut bits, u64::from(counter & 0xF));
+    l::TIME_SINCE_RELEASE.put(&mut bits, quant(time_since_release_cs, l::TIME_CS_PER_LSB));
     seal(&l::FAULT_REPORT, Some(identity), bits)
 }
 
@@ -309,6 +356,45 @@ pub fn encode_status(s: &StatusReport, link: StatusLink) -> CanFrame {
     l::FIRMWARE_MAJOR.put(&mut bits, u64::from(s.version.0));
     l::FIRMWARE_MINOR.put(&mut bits, u64::from(s.version.1));
     seal(&l::STATUS, None, bits)
+}
+
+/// What a session frame says: the heartbeat counter of the status frame it follows, the
+/// locomotive and the full release count (whose low 6 bits are the status frame's release
+/// number).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub struct SessionLink {
+    /// Heartbeat counter of the status frame sent in the same tick (12 bits used).
+    pub counter: u16,
+    /// The locomotive (6 bits used).
+    pub locomotive: u8,
+    /// Release commands and power-ups since the controller was new (non-volatile, never wraps
+    /// in service).
+    pub release_count: u32,
+}
+
+impl SessionLink {
+    /// The release number (6 bits) the status frames carry for this count.
+    pub const fn release(&self) -> u8 {
+        (self.release_count & 0x3F) as u8
+    }
+}
+
+/// Encodes a session frame.
+pub fn encode_session(link: SessionLink) -> CanFrame {
+    let mut bits = 0u64;
+    l::SESSION_STATUS_COUNTER.put(&mut bits, u64::from(link.counter & 0xFFF));
+    l::SESSION_LOCOMOTIVE.put(&mut bits, u64::from(link.locomotive & 0x3F));
+    l::RELEASE_COUNT.put(&mut bits, u64::from(link.release_count));
+    seal(&l::SESSION, None, bits)
+}
+
+/// The fields of a session payload.
+pub fn session_link(bits: u64) -> SessionLink {
+    SessionLink {
+        counter: l::SESSION_STATUS_COUNTER.get(bits) as u16,
+        locomotive: l::SESSION_LOCOMOTIVE.get(bits) as u8,
+        release_count: l::RELEASE_COUNT.get(bits) as u32,
+    }
 }
 
 /// The report a receiver decodes from [`encode_fault`]'s frame: fields rounded to the signal
@@ -356,11 +442,12 @@ pub fn frame_payload(frame: &impl embedded_can::Frame) -> Result<(MessageKind, u
     Ok((kind, u64::from_le_bytes(payload)))
 }
 
-/// The CRC check of a payload: `identity` is the fault report's (ignored for the status frame).
+/// The CRC check of a payload: `identity` is the fault report's (ignored for the status and
+/// session frames).
 pub fn check_crc(kind: MessageKind, bits: u64, identity: Identity) -> Result<(), FrameError> {
     let id = match kind {
         MessageKind::Fault => Some(identity),
-        MessageKind::Status => None,
+        MessageKind::Status | MessageKind::Session => None,
     };
     let expected = e2e_crc(kind.layout().data_id, id, &bits.to_le_bytes());
     let got = l::FAULT_CRC.get(bits) as u8;
@@ -371,11 +458,13 @@ pub fn check_crc(kind: MessageKind, bits: u64, identity: Identity) -> Result<(),
     }
 }
 
-/// The counter of a payload (fault report: 4 bits; status: 12 bits).
+/// The counter of a payload (fault report: 4 bits; status: 12 bits; session: the 12-bit
+/// heartbeat counter of the status frame it follows).
 pub fn counter_of(kind: MessageKind, bits: u64) -> u16 {
     match kind {
         MessageKind::Fault => l::FAULT_COUNTER.get(bits) as u16,
         MessageKind::Status => l::STATUS_COUNTER.get(bits) as u16,
+        MessageKind::Session => l::SESSION_STATUS_COUNTER.get(bits) as u16,
     }
 }
 
@@ -411,6 +500,7 @@ pub fn decode_signals(kind: MessageKind, bits: u64) -> Result<Report, FrameError
     match kind {
         MessageKind::Fault => decode_fault_signals(bits).map(Report::Fault),
         MessageKind::Status => decode_status_signals(bits).map(Report::Status),
+        MessageKind::Session => Ok(Report::Session(session_link(bits))),
     }
 }
 

@@ -136,9 +136,14 @@
 //! the lost session), is accepted but stale ([`Reception::stale`]): not current.
 
 use super::codec::{
-    check_crc, decode_signals, frame_payload, status_link, FrameError, Identity, MessageKind, Report, StatusLink,
+    check_crc, decode_signals, frame_payload, session_link, status_link, FrameError, Identity, MessageKind, Report,
+    StatusLink,
 };
 use super::layout::{self as l, STATUS};
+
+/// Silence of the heartbeat after which the release number no longer gives a session's release
+/// count (64 releases at one a second, less the power-up and one): the next session frame must.
+const RELEASE_COUNT_SILENCE_US: u64 = 62 * STATUS.cycle_ms as u64 * 1000;
 
 /// Silence of the heartbeat (no accepted status frame) after which the session counts as lost:
 /// three status cycles (3 s).
@@ -327,6 +332,20 @@ struct Session {
     /// How far the re-locks since the session opened moved its clock, µs: a heartbeat back at
     /// the phase before them (a latency that ended) re-locks at once.
     relocked_us: i64,
+    /// The full release count of this session as a session frame gave it: (count, the release
+    /// number it was the count of). The count of a later release of the session follows from
+    /// the release number (at most 63 on: the sender sends a session frame at every new
+    /// release number and every 10 s). `None` until a session frame of this session is
+    /// accepted, and again after a silence of the heartbeat long enough for 64 releases.
+    count_base: Option<(u32, u8)>,
+    /// Heartbeat counter whose session frame was accepted (one per heartbeat).
+    count_at: Option<u16>,
+    /// The count the session had before a silence of its heartbeat (as `count_base`): a stream
+    /// that continues the session after the silence must show it again in a session frame
+    /// before its reports are current (a recording that carries on the heartbeat counter looks
+    /// the same as a monitor heard again), and the session frame must carry exactly the count
+    /// it implies.
+    count_before_silence: Option<(u32, u8)>,
 }
 
 /// A status frame's `FaultReportCount` that contradicts the chain of the accepted reports'
@@ -367,6 +386,17 @@ impl CountClaim {
 impl Session {
     /// When the receiver last learnt the sender's fault-report count: the last accepted status
     /// frame (`FaultReportCount`) or fault report (its counter), whichever came later.
+    /// The full release count of the session's release, if a session frame gave it.
+    fn release_count(&self) -> Option<u32> {
+        self.count_of_release(self.identity.release)
+    }
+
+    /// The full release count of `release` (a release number within 32 of the one whose count a
+    /// session frame gave), if one did.
+    fn count_of_release(&self, release: u8) -> Option<u32> {
+        self.count_base.map(|base| count_at_release(base, release))
+    }
+
     fn count_learnt_us(&self) -> u64 {
         self.fault.map_or(self.at_us, |f| f.at_us.max(self.at_us))
     }
@@ -544,6 +574,19 @@ pub struct Reception {
     /// that knowledge (with the frame before) and judged this one from there; what it accepted
     /// since the silence is undone, and a display goes back to what it showed before it.
     pub clock_back_us: Option<u64>,
+    /// The full release count of the release this accepted frame belongs to, when a session
+    /// frame of its session gave it ([`l::RELEASE_COUNT`]).
+    pub release_count: Option<u32>,
+    /// This fault report belongs to a session whose release count no session frame has given
+    /// yet, while the receiver knows this locomotive's count from before: a restart, or a
+    /// session heard after a silence, that cannot be told from a recording of the session 64
+    /// (or 128, …) releases earlier until its session frame comes (at power-up, at every new
+    /// release number and every 10 s). Accepted but not current (also [`Self::stale`]).
+    pub release_unconfirmed: bool,
+    /// The session frame due after the heartbeat before this one (its counter a multiple of
+    /// [`l::SESSION_EVERY_STATUS_FRAMES`], or the first of a new release number) never came,
+    /// from a locomotive that sends them: lost (an accepted status frame only).
+    pub lost_session: bool,
 }
 
 impl Reception {
@@ -572,6 +615,9 @@ impl Reception {
             relock_unconfirmed: false,
             clock_jumped: false,
             clock_back_us: None,
+            release_count: None,
+            release_unconfirmed: false,
+            lost_session: false,
         }
     }
 }
@@ -629,6 +675,16 @@ struct Knowledge {
     relock_unconfirmed_until: u64,
     /// The newest receive stamp of any frame, µs (0 before the first).
     newest_us: u64,
+    /// Newest release count seen per locomotive (from an accepted session frame of a session
+    /// confirmed by a second heartbeat), and when: a session frame behind it is an old
+    /// recording, and a session of that locomotive is current only once its own session frame
+    /// gave its count ([`Reception::release_unconfirmed`]).
+    newest_count: [Option<(u32, u64)>; 64],
+    /// A status frame after a silence refused only because its 6-bit release number did not
+    /// look newer than the locomotive's newest (equal, or 32–63 on, which reads as behind), and
+    /// when it came: a restart after 64 or more releases the receiver did not hear looks so.
+    /// The session frame right after it decides by the full count ([`Decoder::session_frame`]).
+    restart_candidate: Option<(StatusLink, u64)>,
 }
 
 /// How far before the frame that ended a silence of the receive clock a frame must be stamped to
@@ -655,6 +711,13 @@ fn ms(us: i64) -> i32 {
     (us / 1000).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
 }
 
+/// The full count of release number `release`, from the count of release number `base`
+/// (`(count, base)`): within 32 releases of it either way.
+fn count_at_release((count, base): (u32, u8), release: u8) -> u32 {
+    let k = i32::from(release.wrapping_sub(base) & 0x3F);
+    count.wrapping_add_signed(if k >= 32 { k - 64 } else { k })
+}
+
 /// Release `b` is `a` or later (6-bit numbers, less than half the range ahead).
 fn release_not_before(b: u8, a: u8) -> bool {
     (b.wrapping_sub(a) & 0x3F) < 32
@@ -675,6 +738,8 @@ impl Decoder {
                 two_streams_until: 0,
                 relock_unconfirmed_until: 0,
                 newest_us: 0,
+                newest_count: [None; 64],
+                restart_candidate: None,
             },
             before_jump: None,
         }
@@ -748,6 +813,9 @@ impl Decoder {
                     // (`Reception::two_streams`).
                     && accepted_us > self.st.two_streams_until
                     && accepted_us > self.st.relock_unconfirmed_until
+                    // Its session's release count is known, when the locomotive's is
+                    // (`Reception::release_unconfirmed`).
+                    && !self.count_unconfirmed(&s)
             }
             None => false,
         }
@@ -806,7 +874,11 @@ impl Decoder {
                 r
             }
             Ok((MessageKind::Fault, bits)) => self.fault(now_us, bits, &mut rec),
+            Ok((MessageKind::Session, bits)) => self.session_frame(now_us, bits, &mut rec),
         };
+        if rec.result.is_ok() {
+            rec.release_count = self.count_of(rec.identity);
+        }
         rec
     }
 
@@ -940,6 +1012,10 @@ impl Decoder {
                 } else if self.st.seen & (1 << loco) != 0 {
                     let newest = self.st.newest_release[usize::from(loco)];
                     let release = link.identity.release & 0x3F;
+                    if release == newest || !release_not_before(release, newest) {
+                        // The session frame right after it may show a restart by its count.
+                        self.st.restart_candidate = Some((link, now));
+                    }
                     if release == newest {
                         // The release this receiver already followed, not continuing it: a
                         // frame from before the silence.
@@ -1028,6 +1104,9 @@ impl Decoder {
             rival: None,
             phase_run: None,
             relocked_us: 0,
+            count_base: None,
+            count_at: None,
+            count_before_silence: None,
         });
         // A tentative session rests on one frame, which may be a replay: what it says of the
         // locomotive's newest release is believed only once a second heartbeat confirms it
@@ -1041,6 +1120,34 @@ impl Decoder {
     /// Accepts a status frame that continues session `s` (`c`: how, from [`continuation`]).
     fn accept_status(&mut self, mut s: Session, now: u64, link: &StatusLink, c: Continues, rec: &mut Reception) {
         let before = s;
+        // The heartbeat before was due a session frame that never came.
+        rec.lost_session = c.periods == 1
+            && before.count_at != Some(before.counter)
+            && (before.counter % l::SESSION_EVERY_STATUS_FRAMES == 0
+                || (before.release_before_us.is_some() && before.release_since_us == before.at_us))
+            && self.st.newest_count.get(usize::from(before.identity.locomotive & 0x3F)).is_some_and(Option::is_some);
+        // A session frame due after the heartbeat before did not come: the count is in doubt
+        // until the next one gives it (a stream stripped of its session frames is not vouched
+        // for longer than one period of them).
+        if rec.lost_session {
+            s.count_before_silence = s.count_base.or(s.count_before_silence);
+            s.count_base = None;
+        }
+        // After a silence of the heartbeat the next session frame must give the count again:
+        // a stream that continues the session in time may be a recording that carries on its
+        // heartbeat counter (sixth black-box attacker, F2). It must carry the count
+        // the session implies, unless the silence was long enough for 64 releases (one a
+        // second, as the release rules assume): then the release number no longer gives it.
+        let silence = now.saturating_sub(s.at_us);
+        // (A session frame accepted in the silence, on time for a heartbeat lost in it and with
+        // the session's count, already gave the count again.)
+        let count_heard_since =
+            s.count_at.is_some_and(|c| (1..COUNTER_MOD / 2).contains(&(c.wrapping_sub(s.counter) % COUNTER_MOD)));
+        if silence > HEARTBEAT_TIMEOUT_US && !count_heard_since {
+            s.count_before_silence =
+                s.count_base.or(s.count_before_silence).filter(|_| silence < RELEASE_COUNT_SILENCE_US);
+            s.count_base = None;
+        }
         let d = c.periods;
         // (The heartbeat before this one at its phase was received, flagged: not lost.)
         let received_late = u64::from(late_heartbeat(&s).is_some() && c.phase == Phase::Step);
@@ -1198,6 +1305,9 @@ impl Decoder {
         s.phase_run = None;
         self.st.session = Some(s);
         self.remember(link);
+        if let Some(count) = s.release_count() {
+            self.note_count(s.identity.locomotive, count, now);
+        }
         if c.undo_release || c.release_wrapped {
             self.st.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
         }
@@ -1211,6 +1321,171 @@ impl Decoder {
             self.st.newest_release[i] = id.release;
         }
         self.st.seen |= 1 << i;
+    }
+
+    /// The locomotive's newest release count is `count` (or newer), heard at `now`.
+    fn note_count(&mut self, locomotive: u8, count: u32, now: u64) {
+        let i = usize::from(locomotive & 0x3F);
+        if let Some(slot) = self.st.newest_count.get_mut(i) {
+            if slot.is_none_or(|(newest, _)| count >= newest) {
+                *slot = Some((count, now));
+                // The count is the authority on which release is the newest (the 6-bit number
+                // reads 32–63 on as behind).
+                if let Some(r) = self.st.newest_release.get_mut(i) {
+                    *r = (count & 0x3F) as u8;
+                }
+                self.st.seen |= 1 << i;
+            }
+        }
+    }
+
+    /// The session's release count is not known while the receiver knows its locomotive's
+    /// ([`Reception::release_unconfirmed`]).
+    fn count_unconfirmed(&self, s: &Session) -> bool {
+        s.count_base.is_none()
+            && self.st.newest_count.get(usize::from(s.identity.locomotive & 0x3F)).is_some_and(Option::is_some)
+    }
+
+    /// The full release count of an accepted frame of `identity`, when a session frame gave it.
+    fn count_of(&self, identity: Option<Identity>) -> Option<u32> {
+        let id = identity?;
+        [self.st.session, self.st.lost]
+            .into_iter()
+            .flatten()
+            .find(|s| s.identity.locomotive == id.locomotive && s.count_base.is_some())
+            .and_then(|s| s.count_of_release(id.release))
+    }
+
+    /// A session frame (layout 3): the full release count of the session followed. It is judged
+    /// with the status frame it follows in the same transmit tick: it must carry that
+    /// heartbeat's counter, locomotive and release number (the count's low 6 bits), come within
+    /// [`TOLERANCE_US`] after it, be the only one for it, and carry the session's count when
+    /// the session has one; else the locomotive's newest count seen or one further on, by no
+    /// more than the time since allows (one release a second and the power-up), else
+    /// [`FrameError::WrongReleaseCount`] — a recording of an old session of the locomotive
+    /// (whose release number is the same modulo 64), or a corruption. A session frame of a
+    /// restart that jumped over several release numbers and whose count is newer than any seen
+    /// shows a genuine restart (the monitor was power-cycled while this receiver heard nothing):
+    /// its reports are current again.
+    fn session_frame(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
+        check_crc(MessageKind::Session, bits, Identity::default())?;
+        let report = decode_signals(MessageKind::Session, bits)?;
+        let link = session_link(bits);
+        let candidate = self.st.restart_candidate.take();
+        if self.st.session.is_none() {
+            if let Some((status, at)) = candidate {
+                self.restart_by_count(now, &link, &status, at, rec)?;
+                return Ok(report);
+            }
+        }
+        let Some(mut s) = self.st.session else {
+            return Err(FrameError::NoHeartbeat);
+        };
+        if link.locomotive != s.identity.locomotive {
+            return Err(FrameError::ForeignSender { locomotive: link.locomotive });
+        }
+        // Right after the last accepted heartbeat, with its counter; or, when that heartbeat was
+        // lost, on time for its own counter by the session clock (as a heartbeat would be).
+        let d = link.counter.wrapping_sub(s.counter) % COUNTER_MOD;
+        if d >= COUNTER_MOD / 2 {
+            return Err(FrameError::Stale { last: s.counter, got: link.counter });
+        }
+        if s.count_at == Some(link.counter) {
+            return Err(FrameError::RateExceeded { gap_ms: ms(diff(now, s.at_us)).max(0) as u32 });
+        }
+        let span = u64::from(d) * STATUS_PERIOD_US;
+        // Right after a newer heartbeat that was flagged for its timing (a latency step, a
+        // delayed frame): it comes and goes with that heartbeat, and its count is checked below.
+        let flagged_at = s.off_phase.filter(|&(c, _)| d > 0 && c == link.counter).map(|(_, at)| at);
+        // On time for its counter by the session clock (as its heartbeat would be: a heartbeat
+        // that came early alone, or was lost), or right after its heartbeat as received.
+        let due = s.anchor_us.saturating_add(i64::try_from(span).unwrap_or(i64::MAX));
+        let by_clock = diff(now, 0).saturating_sub(due);
+        let on_clock = (-(TOLERANCE_US as i64)..=(TOLERANCE_US + drift(span)) as i64).contains(&by_clock);
+        let heard_at = flagged_at.or((d == 0).then_some(s.at_us));
+        let after_heartbeat = heard_at.is_some_and(|at| (0..=TOLERANCE_US as i64).contains(&diff(now, at)));
+        if !on_clock && !after_heartbeat {
+            return Err(FrameError::Untimely { off_ms: ms(heard_at.map_or(by_clock, |at| diff(now, at))) });
+        }
+        // Its release number: the session's, or the next when the heartbeat it follows (lost)
+        // carried a new one.
+        let next = (s.identity.release + 1) & 0x3F;
+        if link.release() != s.identity.release && !(d > 0 && link.release() == next) {
+            return Err(FrameError::WrongRelease { expected: s.identity.release, got: link.release() });
+        }
+        let got = link.release_count;
+        let newest = self.st.newest_count.get(usize::from(link.locomotive & 0x3F)).copied().flatten();
+        let implied = s.count_base.or(s.count_before_silence).map(|base| count_at_release(base, link.release()));
+        if let Some(known) = implied {
+            if got != known {
+                // Not this session's count: a recording that carries on the session's heartbeat
+                // counter, or a corruption. The session's count is in doubt until a session
+                // frame gives it again (its reports are not current meanwhile): the one
+                // exception to "a flagged frame moves nothing", and it only withholds.
+                if let Some(o) = self.st.session.as_mut() {
+                    o.count_before_silence = o.count_base.or(o.count_before_silence);
+                    o.count_base = None;
+                }
+                return Err(FrameError::WrongReleaseCount { known, got });
+            }
+        } else if let Some((known, at)) = newest {
+            let allowed = 2 + now.saturating_sub(at) / STATUS_PERIOD_US;
+            if got < known || u64::from(got - known) > allowed {
+                return Err(FrameError::WrongReleaseCount { known, got });
+            }
+            if got > known {
+                // Newer than any count seen: a genuine restart, however far its release number
+                // jumped.
+                s.restart_jump = 0;
+            }
+        }
+        s.count_base = Some((got, link.release()));
+        s.count_at = Some(link.counter);
+        self.st.session = Some(s);
+        if !s.tentative {
+            self.note_count(s.identity.locomotive, got, now);
+        }
+        rec.identity = Some(s.identity);
+        Ok(report)
+    }
+
+    /// The session frame right after a status frame that was refused after a silence only
+    /// because its 6-bit release number did not look newer (equal, or 32–63 on: it reads as
+    /// behind): when it follows that status frame (its counter, locomotive and release number,
+    /// within [`TOLERANCE_US`]) and its count is newer than any seen from the locomotive, by no
+    /// more than the time since allows, the monitor restarted after 64 or more releases this
+    /// receiver did not hear (sixth black-box attacker, F3: it had been refused until
+    /// the receiver was reset). The session opens (tentative) from that status frame, with
+    /// this count; the status frame stays flagged.
+    fn restart_by_count(
+        &mut self,
+        now: u64,
+        link: &super::codec::SessionLink,
+        status: &StatusLink,
+        at: u64,
+        rec: &mut Reception,
+    ) -> Result<(), FrameError> {
+        let loco = status.identity.locomotive & 0x3F;
+        if link.locomotive != loco || link.counter != status.counter || link.release() != status.identity.release & 0x3F
+        {
+            return Err(FrameError::NoHeartbeat);
+        }
+        if !(0..=TOLERANCE_US as i64).contains(&diff(now, at)) {
+            return Err(FrameError::Untimely { off_ms: ms(diff(now, at)) });
+        }
+        let Some((known, heard)) = self.st.newest_count.get(usize::from(loco)).copied().flatten() else {
+            return Err(FrameError::NoHeartbeat);
+        };
+        let got = link.release_count;
+        if got <= known || u64::from(got - known) > 2 + now.saturating_sub(heard) / STATUS_PERIOD_US {
+            return Err(FrameError::WrongReleaseCount { known, got });
+        }
+        self.open(at, status, true, rec);
+        if let Some(s) = self.st.session.as_mut() {
+            s.count_base = Some((got, link.release()));
+            s.count_at = Some(link.counter);
+        }
+        Ok(())
     }
 
     fn fault(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
@@ -1521,8 +1796,14 @@ impl Decoder {
         // lost), but not current (a delayed stream, whose heartbeats are flagged, shows here).
         rec.early = track.pending;
         rec.delayed_stream = s.lag_us > MAX_LATENCY_STEP_US as i64;
-        rec.stale =
-            missed > 0 || track.unverified || s.restart_jump > 0 || provisional || track.pending || rec.delayed_stream;
+        rec.release_unconfirmed = self.count_unconfirmed(&s);
+        rec.stale = missed > 0
+            || track.unverified
+            || s.restart_jump > 0
+            || provisional
+            || track.pending
+            || rec.delayed_stream
+            || rec.release_unconfirmed;
         // The early report this one replaced: a display that showed it as current stops showing
         // it (one not shown as current was never held).
         if dropped_early == Some(false) {

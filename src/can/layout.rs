@@ -15,7 +15,7 @@ pub struct Signal {
     pub name: &'static str,
     /// Start bit (LSB) in Intel numbering: bit `i` is bit `i % 8` of byte `i / 8`.
     pub start_bit: u8,
-    /// Length in bits (1..=16 here).
+    /// Length in bits (1..=16 here, 32 for the release count).
     pub len: u8,
     /// Physical value = raw · factor + offset.
     pub factor: f64,
@@ -64,8 +64,9 @@ pub struct Message {
     pub dlc: u8,
     /// E2E data ID mixed into the CRC (not transmitted), so a frame under the wrong
     /// identifier fails its CRC: the message's PGN with the layout version in the high nibble
-    /// (layout 2; layout 1 used 0xFF50 / 0xFF51), so frames of the two layouts cannot be
-    /// confused.
+    /// that introduced or last changed the message (layout 2 for the fault report and the
+    /// status frame, whose layout 1 used 0xFF50 / 0xFF51; layout 3 for the session frame), so
+    /// frames of different layouts cannot be confused.
     pub data_id: u16,
     /// Nominal cycle time in ms (DBC attribute `GenMsgCycleTime`).
     pub cycle_ms: u16,
@@ -262,8 +263,41 @@ pub const STATUS: Message = Message {
     ],
 };
 
+// ---- Session (release count) ---------------------------------------------------------------
+
+/// E2E CRC-8 (SAE J1850) over the data ID and bytes 1..8 of the session frame.
+pub const SESSION_CRC: Signal = sig("SessionCrc", 0, 8, 1.0, 255.0, "");
+/// The heartbeat counter of the status frame this session frame follows (sent in the same
+/// transmit tick, right after it): what ties the release count to one moment of one session.
+pub const SESSION_STATUS_COUNTER: Signal = sig("SessionStatusCounter", 8, 12, 1.0, 4095.0, "");
+/// The locomotive, as in [`LOCOMOTIVE`].
+pub const SESSION_LOCOMOTIVE: Signal = sig("SessionLocomotive", 20, 6, 1.0, 63.0, "");
+/// Release count: release commands and power-ups since the controller was new, the counter it
+/// keeps in non-volatile memory, in full (32 bits; [`RELEASE_NUMBER`] is its low 6 bits). The
+/// 6-bit release number repeats every 64 releases; this count never does (at one release a
+/// second it would take 136 years), so a receiver that saw it once tells a restart of the
+/// monitor from a recording of an old session of the same locomotive. Bits 26..32 are reserved.
+pub const RELEASE_COUNT: Signal = sig("ReleaseCount", 32, 32, 1.0, 4_294_967_295.0, "");
+
+/// Status frames between two periodic session frames (10 s): a display that joins late
+/// learns the release count within this time. A session frame is also sent after the first
+/// status frame of a power-up and after the first status frame of each new release number.
+pub const SESSION_EVERY_STATUS_FRAMES: u16 = 10;
+
+/// The session frame: the full release count, sent right after a status frame (power-up, a new
+/// release number, and every [`SESSION_EVERY_STATUS_FRAMES`] status frames). Layout 3 added it;
+/// the two frames of layout 2 are unchanged.
+pub const SESSION: Message = Message {
+    name: "BPM_Session",
+    id: ext(0x18FF_5280),
+    dlc: 8,
+    data_id: 0x3F52,
+    cycle_ms: 10_000,
+    signals: &[SESSION_CRC, SESSION_STATUS_COUNTER, SESSION_LOCOMOTIVE, RELEASE_COUNT],
+};
+
 /// Every message the monitor transmits. Nothing else is ever sent.
-pub const MESSAGES: [Message; 2] = [FAULT_REPORT, STATUS];
+pub const MESSAGES: [Message; 3] = [FAULT_REPORT, STATUS, SESSION];
 
 #[cfg(test)]
 mod tests {
@@ -284,6 +318,7 @@ mod tests {
         }
         assert_eq!(FAULT_REPORT.reserved_mask(), 0);
         assert_eq!(STATUS.reserved_mask(), 0);
+        assert_eq!(SESSION.reserved_mask(), 0x3F << 26);
     }
 
     #[test]

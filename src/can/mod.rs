@@ -4,15 +4,15 @@
 //!
 //! # The monitor never commands the brake
 //!
-//! The monitor only ever transmits the two frames of [`layout::MESSAGES`] (fault report and
-//! status, extended identifiers, 8-byte data frames): no requests, no remote frames, nothing
+//! The monitor only ever transmits the three frames of [`layout::MESSAGES`] (fault report,
+//! status and session, extended identifiers, 8-byte data frames): no requests, no remote frames, nothing
 //! that could command the brake or any other device. Nothing in this crate acts on a received
 //! frame: the monitor's only inputs are the ADC reading and the valve command, passed as
 //! arguments ([`crate::monitor::Monitor::update`], [`crate::pipeline::Pipeline::step`]); no
 //! function takes a frame and changes the monitor's state or drives an output. The [`decoder`]
 //! is for receivers (the cab display, the host tools); it flags everything that is not one of
-//! the two messages and yields no report for it. `tests/can_codec.rs` checks that the pipeline
-//! emits nothing but these two identifiers, whatever its inputs.
+//! the three messages and yields no report for it. `tests/can_codec.rs` checks that the pipeline
+//! emits nothing but these three identifiers, whatever its inputs.
 //!
 //! - [`frame`]: a plain frame type implementing [`embedded_can::Frame`].
 //! - [`layout`]: identifiers, signals, value codes.
@@ -30,8 +30,9 @@ pub mod layout;
 pub mod reporter;
 
 pub use codec::{
-    decode_frame, encode_fault, encode_status, quantize_fault, FrameError, Identity, MessageKind, Report, StatusLink,
+    decode_frame, encode_fault, encode_session, encode_status, quantize_fault, FrameError, Identity, MessageKind,
+    Report, SessionLink, StatusLink,
 };
 pub use decoder::{Decoder, Reception, HEARTBEAT_TIMEOUT_US, MAX_LATENCY_STEP_US, MAX_RELOCK_US, RELOCK_RUN};
 pub use frame::CanFrame;
-pub use reporter::{CanReporter, Outbox};
+pub use reporter::{CanReporter, Outbox, PowerUp};

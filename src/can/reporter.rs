@@ -23,10 +23,14 @@
 //! every fault report carries its 4-bit counter and its time since the release command, and
 //! its CRC covers the identity. The release number counts release commands
 //! ([`CanReporter::new_release`]) and power-ups ([`CanReporter::set_identity`]) from the value
-//! kept across power cycles, so each release and each power cycle has its own number.
+//! kept across power cycles, so each release and each power cycle has its own number. The
+//! session frame carries that count in full (the status frame has room for its low 6 bits
+//! only), right after the status frame of a power-up, of a new release number, and every
+//! [`SESSION_EVERY_STATUS_FRAMES`] status frames.
 
-use super::codec::{encode_fault, encode_status, quantize_fault, Identity, StatusLink};
+use super::codec::{encode_session, encode_status, fault_content_bits, seal_fault, Identity, SessionLink, StatusLink};
 use super::frame::CanFrame;
+use super::layout::SESSION_EVERY_STATUS_FRAMES;
 use crate::report::{FaultReport, StatusReport};
 
 /// Samples between status frames (1 s at 100 Hz).
@@ -36,16 +40,17 @@ pub const FAULT_REPEAT_SAMPLES: u32 = 100;
 /// Minimum samples between two fault reports (100 ms).
 pub const FAULT_MIN_GAP_SAMPLES: u32 = 10;
 
-/// Frames to send for one sample, in transmit order (fault report first). At most two.
+/// Frames to send for one sample, in transmit order (fault report, status, session: also the
+/// order of their identifiers' bus priority). At most three.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Outbox {
-    frames: [CanFrame; 2],
+    frames: [CanFrame; 3],
     len: usize,
 }
 
 impl Outbox {
     const fn empty() -> Self {
-        Self { frames: [CanFrame::from_extended(embedded_can::ExtendedId::ZERO, [0; 8]); 2], len: 0 }
+        Self { frames: [CanFrame::from_extended(embedded_can::ExtendedId::ZERO, [0; 8]); 3], len: 0 }
     }
 
     fn push(&mut self, f: CanFrame) {
@@ -61,6 +66,17 @@ impl Outbox {
     }
 }
 
+/// What a monitor powers up with ([`CanReporter::set_identity`]): the number of the locomotive
+/// it is fitted to and the release count it kept in non-volatile memory (0 for a new
+/// controller).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub struct PowerUp {
+    /// The locomotive's number (6 bits are sent).
+    pub locomotive: u8,
+    /// Release commands and power-ups before this power-up.
+    pub release_count: u32,
+}
+
 /// Decides, sample by sample, which fault-report and status frames to send, and keeps their
 /// rolling counters.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
@@ -70,8 +86,15 @@ pub struct CanReporter {
     status_counter: u16,
     fault_counter: u8,
     identity: Identity,
-    /// Last fault report sent, quantised, with its time field zeroed (the change key).
-    last_fault_key: Option<FaultReport>,
+    /// Release commands and power-ups since the controller was new ([`Self::set_identity`]);
+    /// `identity.release` is its low 6 bits.
+    release_count: u32,
+    /// A session frame is due with the next status frame: the release count changed since
+    /// the last one (a power-up, a release command).
+    session_due: bool,
+    /// Content bits of the last fault report sent ([`fault_content_bits`]: at CAN resolution,
+    /// without counter and time): the change key.
+    last_fault_key: Option<u64>,
     samples_since_fault: u32,
     /// Samples since the release command (the command's sample is 0): the time field of every
     /// fault report sent is at least this, so a closed diagnosis repeated (or withdrawn) while
@@ -88,19 +111,28 @@ impl CanReporter {
             status_counter: 0,
             fault_counter: 0,
             identity: Identity { locomotive: 0, release: 0 },
+            release_count: 0,
+            session_due: true,
             last_fault_key: None,
             samples_since_fault: FAULT_MIN_GAP_SAMPLES,
             samples_since_release: 0,
         }
     }
 
-    /// Power-up with the locomotive's number and the release number kept (in non-volatile
+    /// Power-up with the locomotive's number and the release count kept (in non-volatile
     /// memory) from before it (0 for a new controller). The power-up itself counts as a new
-    /// release number, so frames after a restart can never be mistaken for frames of the
-    /// release before it; the next release command counts one more.
-    pub fn set_identity(&mut self, identity: Identity) {
-        self.identity =
-            Identity { locomotive: identity.locomotive, release: identity.release.wrapping_add(1) }.masked();
+    /// release, so frames after a restart can never be mistaken for frames of the release
+    /// before it; the next release command counts one more.
+    pub fn set_identity(&mut self, power_up: PowerUp) {
+        self.release_count = power_up.release_count.wrapping_add(1);
+        self.session_due = true;
+        self.identity = Identity { locomotive: power_up.locomotive, release: self.release_count as u8 }.masked();
+    }
+
+    /// The release count now (what the controller keeps in non-volatile memory for the next
+    /// power-up).
+    pub fn release_count(&self) -> u32 {
+        self.release_count
     }
 
     /// The identity the frames carry now.
@@ -112,7 +144,9 @@ impl CanReporter {
     /// belongs to a new diagnosis and is sent at once, even when its content equals the
     /// previous release's report.
     pub fn new_release(&mut self) {
-        self.identity.release = (self.identity.release + 1) & 0x3F;
+        self.release_count = self.release_count.wrapping_add(1);
+        self.session_due = true;
+        self.identity.release = (self.release_count & 0x3F) as u8;
         self.last_fault_key = None;
         self.samples_since_release = 0;
     }
@@ -125,6 +159,11 @@ impl CanReporter {
             let link =
                 StatusLink { counter: self.status_counter, identity: self.identity, fault_count: self.fault_counter };
             out.push(encode_status(status, link));
+            if self.session_due || self.status_counter % SESSION_EVERY_STATUS_FRAMES == 0 {
+                let (counter, locomotive) = (self.status_counter, self.identity.locomotive);
+                out.push(encode_session(SessionLink { counter, locomotive, release_count: self.release_count }));
+                self.session_due = false;
+            }
             self.status_counter = (self.status_counter + 1) & 0xFFF;
             self.status_countdown = STATUS_PERIOD_SAMPLES - 1;
         } else {
@@ -154,7 +193,7 @@ impl CanReporter {
     fn fault_frame(&mut self, fault: Option<&FaultReport>, release_active: bool, elapsed: u32, now: u32) -> Outbox {
         let mut out = Outbox::empty();
         if let Some(report) = fault {
-            let key = FaultReport { time_since_release_cs: 0, ..quantize_fault(report) };
+            let key = fault_content_bits(report);
             // The 10 Hz bound holds for every report, including the first of a new release:
             // a chattering valve command cannot push reports faster than that.
             let gap_done = elapsed >= FAULT_MIN_GAP_SAMPLES;
@@ -165,8 +204,8 @@ impl CanReporter {
             };
             if due {
                 let now = now.min(u32::from(u16::MAX)) as u16;
-                let sent = FaultReport { time_since_release_cs: report.time_since_release_cs.max(now), ..*report };
-                out.push(encode_fault(&sent, self.fault_counter, self.identity));
+                let time = report.time_since_release_cs.max(now);
+                out.push(seal_fault(key, time, self.fault_counter, self.identity));
                 self.fault_counter = (self.fault_counter + 1) & 0xF;
                 self.last_fault_key = Some(key);
                 self.samples_since_fault = 0;

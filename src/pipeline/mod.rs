@@ -132,12 +132,12 @@ impl Pipeline {
         Ok(Self::with_monitor(Monitor::with_twin(twin)?))
     }
 
-    /// Power-up identity for the CAN frames: the locomotive's number and the release number
+    /// Power-up identity for the CAN frames: the locomotive's number and the release count
     /// kept from before this start (a controller keeps it across power cycles; this power-up
     /// and every release command count one more, [`CanReporter::set_identity`]). Call before
     /// the first sample.
-    pub fn set_identity(&mut self, identity: crate::can::Identity) {
-        self.reporter.set_identity(identity);
+    pub fn set_identity(&mut self, power_up: crate::can::PowerUp) {
+        self.reporter.set_identity(power_up);
     }
 
     /// One 100 Hz sample: monitor, release features, diagnosis policy, transmit schedule.

@@ -5,7 +5,8 @@ can/brake_monitor.dbc and check the values equal host-sim's own decoding.
 The fault report's CRC covers the locomotive and release number of the sender (carried by
 the status frame, not by the fault report): host-sim's CSV names the pair it attributed each
 report to, and this script checks it is the last status frame's (or its next release) and that
-the CRC over it matches.
+the CRC over it matches. A session frame must follow its status frame (same heartbeat counter,
+locomotive, and release number = the low 6 bits of its release count).
 
 Usage: can_cantools_check.py DBC LOG HOST_SIM_CSV [--require-all-labels]
 
@@ -21,11 +22,14 @@ import sys
 import cantools
 import cantools.logreader
 
-DATA_IDS = {"BPM_FaultReport": 0x2F50, "BPM_Status": 0x2F51}
+DATA_IDS = {"BPM_FaultReport": 0x2F50, "BPM_Status": 0x2F51, "BPM_Session": 0x3F52}
 # The fault report's CRC also covers the sender identity the status frame carries.
 IDENTITY_SIGNALS = ("Locomotive", "ReleaseNumber")
-CRC_SIGNAL = {"BPM_FaultReport": "FaultCrc", "BPM_Status": "StatusCrc"}
-COUNTER_SIGNAL = {"BPM_FaultReport": "FaultCounter", "BPM_Status": "StatusCounter"}
+CRC_SIGNAL = {"BPM_FaultReport": "FaultCrc", "BPM_Status": "StatusCrc", "BPM_Session": "SessionCrc"}
+COUNTER_SIGNAL = {"BPM_FaultReport": "FaultCounter", "BPM_Status": "StatusCounter",
+                  "BPM_Session": "SessionStatusCounter"}
+# host-sim's CSV column of a signal, where the names differ.
+COLUMN = {"SessionLocomotive": "Locomotive"}
 
 
 def crc8_sae_j1850(data: bytes) -> int:
@@ -58,6 +62,7 @@ def main() -> int:
     seen = {}
     counts = {}
     identity = {"Locomotive": 0, "ReleaseNumber": 0}  # of the last status frame (0, 0 before one)
+    last_status_counter = None
     for i, (fr, row) in enumerate(zip(frames, rows)):
         where = f"frame {i + 1} ({fr.frame_id:08X}#{fr.data.hex().upper()})"
         try:
@@ -80,7 +85,19 @@ def main() -> int:
         # bytes 1..7.
         if msg.name == "BPM_Status":
             identity = {k: raw[k] for k in IDENTITY_SIGNALS}
+            last_status_counter = raw["StatusCounter"]
             implicit = b""
+        elif msg.name == "BPM_Session":
+            # Sent right after its status frame: same heartbeat counter, locomotive and release
+            # number (the count's low 6 bits).
+            implicit = b""
+            ours = (raw["SessionStatusCounter"], raw["SessionLocomotive"], raw["ReleaseCount"] % 64)
+            theirs = (last_status_counter, identity["Locomotive"], identity["ReleaseNumber"])
+            if ours != theirs:
+                errors.append(f"{where}: session frame (counter, locomotive, release) {ours}, "
+                              f"the status frame before it {theirs}")
+            if int(row["ReleaseNumber"]) != raw["ReleaseCount"] % 64:
+                errors.append(f"{where}: host-sim release number {row['ReleaseNumber']}")
         else:
             loco, release = int(row["Locomotive"]), int(row["ReleaseNumber"])
             implicit = bytes([loco, release])
@@ -93,6 +110,10 @@ def main() -> int:
             errors.append(f"{where}: CRC {raw[CRC_SIGNAL[msg.name]]:02X}, expected {crc:02X}")
         if int(row["counter"]) != raw[COUNTER_SIGNAL[msg.name]]:
             errors.append(f"{where}: counter host-sim {row['counter']} vs cantools {raw[COUNTER_SIGNAL[msg.name]]}")
+        # host-sim's attribution of the frame to a full release count (when a session frame gave
+        # one) agrees with the release number it names.
+        if row.get("ReleaseCount") and int(row["ReleaseCount"]) % 64 != int(row["ReleaseNumber"]):
+            errors.append(f"{where}: release count {row['ReleaseCount']} is not release {row['ReleaseNumber']}")
         # Re-encoding cantools' own decoding gives back the frame (no bits outside the DBC).
         again = db.encode_message(fr.frame_id, raw, scaling=False, strict=True)
         if bytes(again) != data:
@@ -101,7 +122,7 @@ def main() -> int:
         for sig in msg.signals:
             if sig.name in (CRC_SIGNAL[msg.name], COUNTER_SIGNAL[msg.name]):
                 continue
-            ours = row[sig.name]
+            ours = row[COLUMN.get(sig.name, sig.name)]
             theirs = phys[sig.name]
             if sig.choices:
                 label = theirs.name if hasattr(theirs, "name") else str(theirs)

@@ -373,6 +373,8 @@ pub struct CanStage {
     pub frames: u64,
     /// Status frames decoded.
     pub status: usize,
+    /// Session frames (release counts) decoded.
+    pub sessions: usize,
     /// Fault reports decoded.
     pub reports: Vec<DecodedReport>,
     /// Frames the decoder flagged (CRC, counter, id, …) with the reason.
@@ -440,6 +442,7 @@ pub fn decode_log(log: &Path, items: &[TraceItem]) -> Result<CanStage> {
         let reception = decoder.receive(rec.time_us, &rec.frame);
         match reception.result {
             Ok(Report::Status(_)) => st.status += 1,
+            Ok(Report::Session(_)) => st.sessions += 1,
             Ok(Report::Fault(report)) => {
                 let item = items.get(segment);
                 st.reports.push(DecodedReport {
@@ -831,9 +834,10 @@ fn section_summary(r: &DemoResults) -> Section {
     t.row(vec![
         Cell::text("CAN: fault reports decoded from the replay log (core decoder)"),
         Cell::strong(format!(
-            "{} reports, {} status frames, {} flagged",
+            "{} reports, {} status frames, {} session frames, {} flagged",
             r.can.reports.len(),
             r.can.status,
+            r.can.sessions,
             r.can.flagged.len()
         )),
         Cell::text(format!("{} frames in {}", r.can.frames, r.can.log.display())),
@@ -1053,11 +1057,12 @@ fn section_can(r: &DemoResults) -> Section {
     s.push(Block::Para(format!(
         "{} test traces replayed through the monitor exactly as the controller runs it (twin, estimator, \
          diagnosis policy, CAN transmit schedule) into the candump log {}; the log read back and decoded with the core's \
-         decoder (CRC, rolling counter, signal ranges): {} frames, {} status frames, {} fault reports, {} flagged.",
+         decoder (CRC, rolling counter, signal ranges): {} frames, {} status frames, {} session frames, {} fault reports, {} flagged.",
         c.traces,
         c.log.display(),
         c.frames,
         c.status,
+        c.sessions,
         c.reports.len(),
         c.flagged.len()
     )));

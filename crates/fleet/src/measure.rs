@@ -8,7 +8,7 @@ use crate::record::{verdict_label, ReleaseRecord, Source};
 use crate::scenario::{plan, simulate, DegradationOptions, DegradedRelease, Wear};
 use crate::trend::{warnings, Parameter, WarningRule};
 use anyhow::Result;
-use pbm::can::Identity;
+use pbm::can::PowerUp;
 use pbm::report::Verdict;
 use pbm::FaultClass;
 use pbm_lab::replay::{replay_samples, ReplayError};
@@ -28,7 +28,7 @@ pub struct Observed {
 pub fn replay_adc(adc: &[u16]) -> Result<(Option<Verdict>, [Option<f64>; 3])> {
     let mut last = None;
     let samples = adc.iter().enumerate().map(|(i, &a)| Ok((i as f64 * pbm::twin::SAMPLE_PERIOD_S, a)));
-    let r = replay_samples(samples, false, Identity::default(), |s| {
+    let r = replay_samples(samples, false, PowerUp::default(), |s| {
         last = Some(s.step.estimates);
         Ok(())
     });

@@ -10,7 +10,7 @@
 
 use crate::can_bus::FrameSink;
 use embedded_can::{ExtendedId, Frame, Id, StandardId};
-use pbm::can::{CanFrame, CanReporter, Identity};
+use pbm::can::{CanFrame, CanReporter, PowerUp};
 use pbm::monitor::Monitor;
 use pbm::pipeline::fault_report;
 use pbm::report::Verdict;
@@ -263,10 +263,10 @@ impl<S: FrameSink> CanRecorder<S> {
         Self { reporter: CanReporter::new(), sink, was_active: false }
     }
 
-    /// A recorder for a locomotive whose last release had number `identity.release`.
-    pub fn with_identity(sink: S, identity: Identity) -> Self {
+    /// A recorder for a monitor powering up as `power_up` says (locomotive, release count kept).
+    pub fn with_identity(sink: S, power_up: PowerUp) -> Self {
         let mut r = Self::new(sink);
-        r.reporter.set_identity(identity);
+        r.reporter.set_identity(power_up);
         r
     }
 

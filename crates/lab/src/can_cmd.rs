@@ -21,7 +21,7 @@ use anyhow::{bail, Context, Result};
 use pbm::can::candump::LOG_EPOCH_US;
 use pbm::can::codec::{decode_signals, frame_payload, status_link, MessageKind};
 use pbm::can::layout::{reason, sensor_health, ESTIMATOR_STATE_LABELS};
-use pbm::can::{CanFrame, Decoder, FrameError, Identity, Report};
+use pbm::can::{CanFrame, Decoder, FrameError, Identity, PowerUp, Report};
 use pbm::monitor::Monitor;
 use pbm::report::{FaultReport, NoDiagnosis, StatusReport, Verdict};
 use pbm::sensor::{adc_from_bar, SensorFault};
@@ -116,6 +116,8 @@ pub struct DecodeSummary {
     pub fault_reports: u64,
     /// Status frames decoded.
     pub status_reports: u64,
+    /// Session frames (release counts) decoded.
+    pub session_reports: u64,
     /// Flagged and skipped, by reason label ([`FrameError::label`] or `bad_log_line`).
     pub flagged: BTreeMap<&'static str, u64>,
     /// Times the heartbeat was silent for longer than [`pbm::can::HEARTBEAT_TIMEOUT_US`] (monitor
@@ -125,6 +127,8 @@ pub struct DecodeSummary {
     pub lost_status: u64,
     /// Fault reports the sender counted that were never accepted here.
     pub lost_fault_reports: u64,
+    /// Session frames a heartbeat was due to be followed by that never came.
+    pub lost_session: u64,
     /// Frames accepted in a tentative session that a continuing heartbeat then showed to be
     /// replays (counted once per superseded session).
     pub superseded: u64,
@@ -152,6 +156,7 @@ impl DecodeSummary {
         self.flagged_total()
             + self.lost_status
             + self.lost_fault_reports
+            + self.lost_session
             + self.superseded
             + self.stale_reports
             + self.withdrawn
@@ -176,6 +181,9 @@ impl std::fmt::Display for DecodeSummary {
         if self.lost_status + self.lost_fault_reports > 0 {
             write!(f, "; lost: {} status frames, {} fault reports", self.lost_status, self.lost_fault_reports)?;
         }
+        if self.lost_session > 0 {
+            write!(f, "; lost: {} session frames", self.lost_session)?;
+        }
         if self.superseded > 0 {
             write!(f, "; {} replayed sessions superseded", self.superseded)?;
         }
@@ -194,6 +202,9 @@ impl std::fmt::Display for DecodeSummary {
         }
         if self.heartbeat_losses > 0 {
             write!(f, "; heartbeat lost {} times", self.heartbeat_losses)?;
+        }
+        if self.session_reports > 0 {
+            write!(f, "; {} session frames (release counts)", self.session_reports)?;
         }
         Ok(())
     }
@@ -279,13 +290,14 @@ pub fn status_line(time_us: u64, id: Option<Identity>, s: &StatusReport) -> Stri
 /// Header of the CSV output of `can decode --format csv`.
 pub const CSV_HEADER: &str = "time_us,id,data,message,counter,Diagnosis,Confidence,NoDiagnosisReason,\
 ReleaseCompleted,TimeSinceRelease,SupplyPressure,LeakDiameter,SensorHealth,EstimatorState,ChamberPressure,\
-FirmwareMajor,FirmwareMinor,Locomotive,ReleaseNumber,FaultReportCount,flag";
+FirmwareMajor,FirmwareMinor,Locomotive,ReleaseNumber,FaultReportCount,ReleaseCount,flag";
 
 fn csv_row(
     time_us: u64,
     frame: &CanFrame,
     counter: Option<u16>,
     report: Option<(&Report, Option<Identity>, Option<u8>)>,
+    release_count: Option<u32>,
     flag: &str,
 ) -> String {
     let (id, data) = match format_frame(frame).split_once('#') {
@@ -293,9 +305,15 @@ fn csv_row(
         None => (String::new(), String::new()),
     };
     let counter = counter.map_or_else(String::new, |c| c.to_string());
+    let release_count = release_count.map_or_else(String::new, |c| c.to_string());
     let ident = |id: Option<Identity>, count: Option<u8>| match id {
-        Some(id) => format!("{},{},{}", id.locomotive, id.release, count.map_or_else(String::new, |c| c.to_string())),
-        None => ",,".to_owned(),
+        Some(id) => format!(
+            "{},{},{},{release_count}",
+            id.locomotive,
+            id.release,
+            count.map_or_else(String::new, |c| c.to_string())
+        ),
+        None => format!(",,,{release_count}"),
     };
     let cols = match report {
         Some((Report::Fault(r), id, count)) => {
@@ -322,7 +340,10 @@ fn csv_row(
             s.version.1,
             ident(id, count),
         ),
-        None => format!(",{counter},,,,,,,,,,,,,,,"),
+        Some((Report::Session(link), ..)) => {
+            format!("BPM_Session,{counter},,,,,,,,,,,,,{},{},,{}", link.locomotive, link.release(), link.release_count)
+        }
+        None => format!(",{counter},,,,,,,,,,,,,,,,"),
     };
     format!("{time_us},{id},{data},{cols},{flag}")
 }
@@ -542,6 +563,16 @@ impl<W: Write> CabDisplay<W> {
                 )?;
             }
         }
+        if reception.lost_session {
+            self.summary.lost_session += 1;
+            if text {
+                writeln!(
+                    self.out,
+                    "{} s  !! lost before this frame: the session frame due after the heartbeat before",
+                    time_text(t)
+                )?;
+            }
+        }
         if reception.lost_status > 0 || reception.lost_fault_reports > 0 {
             self.summary.lost_status += u64::from(reception.lost_status);
             self.summary.lost_fault_reports += u64::from(reception.lost_fault_reports);
@@ -581,6 +612,9 @@ impl<W: Write> CabDisplay<W> {
                     "stale: the stream is delayed beyond the latency step against its first heartbeat".to_owned()
                 } else if reception.early {
                     "not current: sent earlier than the reports before it place it; the next report decides".to_owned()
+                } else if reception.release_unconfirmed {
+                    "not current: no session frame has given this session's release count yet, and this locomotive's is known: a restart, or a session heard after a silence, cannot be told from a recording of one 64 releases earlier until it does"
+                        .to_owned()
                 } else if reception.restart_jump > 0 {
                     format!(
                         "not current: a restart {} releases on, which cannot be told from an old recording",
@@ -607,12 +641,26 @@ impl<W: Write> CabDisplay<W> {
                     writeln!(self.out, "{}", status_line(t, id, s))?;
                 }
             }
+            (Ok(Report::Session(link)), DecodeFormat::Text) => {
+                self.summary.session_reports += 1;
+                if self.show_status {
+                    writeln!(
+                        self.out,
+                        "{} s  {}  session: release count {}",
+                        time_text(t),
+                        identity_text(id),
+                        link.release_count
+                    )?;
+                }
+            }
             (Ok(report), DecodeFormat::Csv) => {
                 match report {
                     Report::Fault(_) => self.summary.fault_reports += 1,
                     Report::Status(_) => self.summary.status_reports += 1,
+                    Report::Session(_) => self.summary.session_reports += 1,
                 }
-                writeln!(self.out, "{}", csv_row(time_us, frame, counter, Some((report, id, count)), ""))?;
+                let row = csv_row(time_us, frame, counter, Some((report, id, count)), reception.release_count, "");
+                writeln!(self.out, "{row}")?;
             }
             (Err(e), DecodeFormat::Text) => {
                 *self.summary.flagged.entry(e.label()).or_default() += 1;
@@ -620,7 +668,7 @@ impl<W: Write> CabDisplay<W> {
             }
             (Err(e), DecodeFormat::Csv) => {
                 *self.summary.flagged.entry(e.label()).or_default() += 1;
-                writeln!(self.out, "{}", csv_row(time_us, frame, counter, None, e.label()))?;
+                writeln!(self.out, "{}", csv_row(time_us, frame, counter, None, None, e.label()))?;
             }
         }
         Ok(result)
@@ -632,7 +680,7 @@ impl<W: Write> CabDisplay<W> {
         *self.summary.flagged.entry("bad_log_line").or_default() += 1;
         match self.format {
             DecodeFormat::Text => writeln!(self.out, "           !! bad_log_line: {e} skipped"),
-            DecodeFormat::Csv => writeln!(self.out, ",,,,,,,,,,,,,,,,,,,,bad_log_line"),
+            DecodeFormat::Csv => writeln!(self.out, ",,,,,,,,,,,,,,,,,,,,,bad_log_line"),
         }
     }
 
@@ -884,7 +932,7 @@ const DEMO_IDLE_S: f64 = 3.0;
 /// During a sensor fault the verdict is `cannot_diagnose (sensor_…)`. Returns frames sent.
 pub fn write_demo_log<S: FrameSink>(sink: S) -> Result<(u64, S)> {
     let mut monitor = Monitor::new(&TwinParams::nominal()).map_err(|e| anyhow::anyhow!("nominal twin: {e}"))?;
-    let mut rec = CanRecorder::with_identity(sink, Identity { locomotive: DEMO_LOCOMOTIVE, release: 0 });
+    let mut rec = CanRecorder::with_identity(sink, PowerUp { locomotive: DEMO_LOCOMOTIVE, release_count: 0 });
     let mut sample: u64 = 0;
     let mut frames = 0u64;
     // Transducer noise (SPEC §5, σ = 0.01 bar) from a fixed seed: a noise-free reading would
@@ -927,7 +975,7 @@ pub fn write_demo_log<S: FrameSink>(sink: S) -> Result<(u64, S)> {
 /// release and count fields over their ranges. Counters run on per message, frames are 10 ms
 /// apart: a codec sweep, not a stream (decode it with `--codec-only`). Returns frames sent.
 pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
-    use pbm::can::{encode_fault, encode_status, StatusLink};
+    use pbm::can::{encode_fault, encode_session, encode_status, SessionLink, StatusLink};
     use pbm::report::EstimatorState;
     let mut verdicts: Vec<Verdict> = Vec::new();
     for class in FaultClass::ALL {
@@ -969,8 +1017,18 @@ pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
                 let identity = Identity { locomotive: m.wrapping_mul(7) & 0x3F, release: m.wrapping_mul(13) & 0x3F };
                 let link = StatusLink { counter: status_counter, identity, fault_count: m & 0xF };
                 sink.send(LOG_EPOCH_US + n * 10_000, &encode_status(&s, link))?;
-                status_counter = (status_counter + 1021) & 0xFFF;
                 n += 1;
+                // A session frame after every third status frame: release counts from 0 to the
+                // top of the 32-bit range, whose low 6 bits are the status frame's release.
+                if m % 3 == 0 {
+                    let high = [0u32, 1, 1000, 0x3FF_FFFF][usize::from(m / 3) % 4];
+                    let release_count = (high << 6) | u32::from(identity.release);
+                    let session =
+                        SessionLink { counter: status_counter, locomotive: identity.locomotive, release_count };
+                    sink.send(LOG_EPOCH_US + n * 10_000, &encode_session(session))?;
+                    n += 1;
+                }
+                status_counter = (status_counter + 1021) & 0xFFF;
             }
         }
     }

@@ -20,7 +20,7 @@
 
 use anyhow::{bail, Context, Result};
 use indicatif::{ProgressBar, ProgressStyle};
-use pbm::can::{CanFrame, Identity};
+use pbm::can::{CanFrame, PowerUp};
 use pbm::metrics::Nmse;
 use pbm::monitor::MonitorStep;
 use pbm::pipeline::Pipeline;
@@ -254,11 +254,11 @@ impl From<FileError> for ReplayError {
 pub fn replay_samples(
     samples: impl Iterator<Item = Result<(f64, u16), FileError>>,
     keep_frames: bool,
-    identity: Identity,
+    power_up: PowerUp,
     mut on_sample: impl FnMut(&ReplaySample) -> Result<()>,
 ) -> Result<Replayed, ReplayError> {
     let mut pipeline = Pipeline::nominal().map_err(|e| ReplayError::Output(anyhow::anyhow!("nominal twin: {e}")))?;
-    pipeline.set_identity(identity);
+    pipeline.set_identity(power_up);
     let mut out = Replayed::default();
     let mut keep = |time_us: u64, frames: &[CanFrame]| {
         if keep_frames {
@@ -308,7 +308,7 @@ pub fn replay_trace_with_diagnosis(trace: &Trace) -> Result<(Vec<ReplaySample>, 
         Samples::Bar(v) => Box::new(v.iter().map(|&p| adc_from_bar(BarG(p)).0)),
     };
     let mut samples = Vec::with_capacity(trace.t_s.len());
-    let run = replay_samples(trace.t_s.iter().copied().zip(adc).map(Ok), false, Identity::default(), |s| {
+    let run = replay_samples(trace.t_s.iter().copied().zip(adc).map(Ok), false, PowerUp::default(), |s| {
         samples.push(*s);
         Ok(())
     });
@@ -410,8 +410,8 @@ fn output_path(dir: &Path, name: &str, ext: &str) -> PathBuf {
 /// The identity a replayed release's CAN frames carry: the locomotive number of `locomotive`
 /// ([`pbm::can::codec::locomotive_number`]) and the release count of a monitor that has seen
 /// `earlier_releases` recorded releases before it (what the firmware sends).
-pub fn release_identity(locomotive: &str, earlier_releases: u8) -> Identity {
-    Identity { locomotive: pbm::can::codec::locomotive_number(locomotive), release: earlier_releases }
+pub fn release_identity(locomotive: &str, earlier_releases: u32) -> PowerUp {
+    PowerUp { locomotive: pbm::can::codec::locomotive_number(locomotive), release_count: earlier_releases }
 }
 
 /// Replays one item and writes its outputs (results CSV, plot); a bad input removes what was
@@ -427,7 +427,7 @@ pub fn replay_item(item: &TraceItem, opts: &ReplayOptions) -> Result<TraceReplay
 pub fn replay_item_after(
     item: &TraceItem,
     opts: &ReplayOptions,
-    earlier_releases: u8,
+    earlier_releases: u32,
 ) -> Result<TraceReplay, ReplayError> {
     replay_item_observing(item, opts, earlier_releases, opts.can_log.is_some(), |_| {})
 }
@@ -438,7 +438,7 @@ pub fn replay_item_after(
 pub fn replay_item_observing(
     item: &TraceItem,
     opts: &ReplayOptions,
-    earlier_releases: u8,
+    earlier_releases: u32,
     keep_frames: bool,
     observe: impl FnMut(&ReplaySample),
 ) -> Result<TraceReplay, ReplayError> {
@@ -460,7 +460,7 @@ fn replay_release(
     locomotive: &str,
     samples: impl Iterator<Item = Result<(f64, u16), FileError>>,
     opts: &ReplayOptions,
-    earlier_releases: u8,
+    earlier_releases: u32,
     keep_frames: bool,
     mut observe: impl FnMut(&ReplaySample),
 ) -> Result<TraceReplay, ReplayError> {
@@ -520,11 +520,11 @@ fn replay_release(
 /// data set's or archive's order) is its release k, so every report in a replay's CAN log
 /// belongs to one locomotive and one release.
 #[derive(Debug, Default)]
-struct ReleaseNumbering(std::collections::HashMap<u8, u8>);
+struct ReleaseNumbering(std::collections::HashMap<u8, u32>);
 
 impl ReleaseNumbering {
     /// The releases the locomotive's monitor has seen before this one.
-    fn next(&mut self, locomotive: Option<&str>) -> u8 {
+    fn next(&mut self, locomotive: Option<&str>) -> u32 {
         let loco = locomotive.map_or(0, pbm::can::codec::locomotive_number);
         let n = self.0.entry(loco).or_insert(0);
         let before = *n;
@@ -547,7 +547,7 @@ pub fn replay_all(items: &[TraceItem], opts: &ReplayOptions) -> Result<Vec<Resul
     let threads = if opts.threads == 0 { 0 } else { opts.threads.min(items.len().max(1)) };
     let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().context("cannot start worker threads")?;
     let mut numbering = ReleaseNumbering::default();
-    let earlier: Vec<u8> = items.iter().map(|item| numbering.next(item.locomotive.as_deref())).collect();
+    let earlier: Vec<u32> = items.iter().map(|item| numbering.next(item.locomotive.as_deref())).collect();
     let results: Vec<Result<Result<TraceReplay, FileError>>> = pool.install(|| {
         items
             .par_iter()
@@ -739,7 +739,7 @@ pub fn replay_archived(
     archive: &str,
     r: &ArchivedRelease,
     opts: &ReplayOptions,
-    earlier_releases: u8,
+    earlier_releases: u32,
 ) -> Result<TraceReplay, ReplayError> {
     replay_archived_observing(archive, r, opts, earlier_releases, opts.can_log.is_some(), |_| {})
 }
@@ -750,7 +750,7 @@ pub fn replay_archived_observing(
     archive: &str,
     r: &ArchivedRelease,
     opts: &ReplayOptions,
-    earlier_releases: u8,
+    earlier_releases: u32,
     keep_frames: bool,
     observe: impl FnMut(&ReplaySample),
 ) -> Result<TraceReplay, ReplayError> {

@@ -2,7 +2,7 @@
 //! frames dropped, repeated, reordered, corrupted and injected on the way.
 
 use embedded_can::{ExtendedId, Frame, StandardId};
-use pbm::can::layout::{FAULT_REPORT, STATUS};
+use pbm::can::layout::{FAULT_REPORT, SESSION, STATUS};
 use pbm::can::CanFrame;
 use pbm_io::can_bus::{FrameSink, MockBus};
 use pbm_io::can_log::{format_line, read_log, CandumpWriter};
@@ -38,7 +38,8 @@ fn demo_stream_decodes_cleanly_and_covers_every_code() {
     let faults = frames.iter().filter(|(_, f)| is_fault(f)).count() as u64;
     assert!(faults > 50);
     assert_eq!(s.fault_reports, faults);
-    assert_eq!(s.status_reports, s.frames - faults);
+    assert_eq!(s.status_reports + s.session_reports, s.frames - faults);
+    assert!(s.session_reports >= s.status_reports / 10, "{s}");
     for label in [
         "normal",
         "air_leak",
@@ -197,7 +198,7 @@ proptest! {
 
 /// `host-sim replay tests/data/small --can-log`: one fresh pipeline per trace (a restarted
 /// monitor, counters from 0) with a gap between traces. The display sees each gap as a lost
-/// heartbeat, resynchronises and flags nothing; every frame is one of the two report ids.
+/// heartbeat, resynchronises and flags nothing; every frame is one of the three report ids.
 #[test]
 fn replayed_data_set_log_decodes_cleanly_across_traces() {
     let data = concat!(env!("CARGO_MANIFEST_DIR"), "/../../tests/data/small");
@@ -210,7 +211,7 @@ fn replayed_data_set_log_decodes_cleanly_across_traces() {
     let text = std::fs::read(&log).unwrap();
     let frames: Vec<CanFrame> = read_log(&text[..]).map(|r| r.unwrap().frame).collect();
     assert_eq!(frames.len() as u64, written);
-    assert!(frames.iter().all(|f| f.raw_id() == FAULT_REPORT.raw_id() || f.raw_id() == STATUS.raw_id()));
+    assert!(frames.iter().all(|f| [FAULT_REPORT, STATUS, SESSION].iter().any(|m| m.raw_id() == f.raw_id())));
     let mut out = Vec::new();
     let mut d = CabDisplay::new(&mut out, false, DecodeFormat::Text);
     decode_log(&text[..], &mut d).unwrap();
@@ -266,7 +267,10 @@ fn restart_without_silence_is_accepted() {
     let clean = demo_frames();
     // The first 10 s of the stream, then a restart 2 s later (a quick restart).
     let t0 = clean[0].0;
-    let head: Vec<(u64, CanFrame)> = clean.iter().copied().filter(|(t, _)| *t < t0 + 10_000_000).collect();
+    // (Status frames only: the session frames' release counts are the subject of
+    // `a_session_from_64_releases_earlier_is_never_current`.)
+    let head: Vec<(u64, CanFrame)> =
+        clean.iter().copied().filter(|(t, f)| *t < t0 + 10_000_000 && f.raw_id() != SESSION.raw_id()).collect();
     assert!(head.iter().all(|(_, f)| f.raw_id() == STATUS.raw_id()));
     let restarted: Vec<(u64, CanFrame)> = head
         .iter()

@@ -74,7 +74,7 @@ fn decode_records(frames: &[(u64, CanFrame)]) -> Outcome {
                     o.stale.push(line);
                 }
             }
-            Ok(Report::Status(_)) => {}
+            Ok(Report::Status(_) | Report::Session(_)) => {}
         }
     }
     o

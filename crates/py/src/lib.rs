@@ -121,7 +121,7 @@ fn replay<'py>(
     adc: &Bound<'py, PyAny>,
     t_s: Option<&Bound<'py, PyAny>>,
     locomotive: &str,
-    earlier_releases: u8,
+    earlier_releases: u32,
 ) -> PyResult<Bound<'py, PyDict>> {
     let adc: PyReadonlyArray1<'py, u16> = adc.extract().map_err(|_| {
         let dtype = adc.getattr("dtype").map_or_else(|_| adc.get_type().to_string(), |d| d.to_string());

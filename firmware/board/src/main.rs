@@ -116,12 +116,14 @@ async fn valve_task(input: embassy_stm32::exti::ExtiInput<'static, embassy_stm32
 /// Runs the core pipeline on every sample and reports its cycle counts.
 #[embassy_executor::task]
 async fn monitor_task(cycles: DwtCycles) {
-    app::monitor_loop(cycles, pbm::can::Identity { locomotive: LOCOMOTIVE, release: 0 }).await;
+    app::monitor_loop(cycles, pbm::can::PowerUp { locomotive: LOCOMOTIVE, release_count: 0 }).await;
 }
 
 /// The locomotive number the CAN frames carry (0–63): `PBM_LOCOMOTIVE` at build time, 0 without
-/// it. The release number starts at 0 on every power-up: this image keeps no non-volatile
-/// counter yet, so a display tells a restarted monitor from a replay by the heartbeat only.
+/// it. The release count starts at 0 on every power-up: this image keeps no non-volatile
+/// counter yet, so every power-up after the first repeats the release count (and release
+/// number) of the one before, which a display that heard it refuses as an old recording
+/// (`can/README.md`). A controller in service must keep the count across power cycles.
 const LOCOMOTIVE: u8 = match option_env!("PBM_LOCOMOTIVE") {
     Some(text) => parse_locomotive(text.as_bytes()),
     None => 0,

@@ -16,7 +16,7 @@
 
 use embassy_executor::Spawner;
 use embedded_can::blocking::Can as _;
-use pbm::can::{CanFrame, Identity};
+use pbm::can::{CanFrame, PowerUp};
 use pbm_firmware::adc::{Paced, TraceAdc, TraceValve, ADC_TRACE, ADC_TRACE_LOCOMOTIVE, ADC_TRACE_NAME};
 use pbm_firmware::app::{self, CountingWatchdog, FrameSink, NoCycles};
 use pbm_firmware::candump::CandumpCan;
@@ -70,9 +70,9 @@ async fn adc_task() {
 /// Runs the core pipeline on every sample.
 #[embassy_executor::task]
 async fn monitor_task() {
-    // The locomotive from configuration (QEMU: the trace's metadata); release number 0: QEMU
+    // The locomotive from configuration (QEMU: the trace's metadata); release count 0: QEMU
     // has no non-volatile memory to keep it across runs.
-    app::monitor_loop(NoCycles, Identity { locomotive: ADC_TRACE_LOCOMOTIVE, release: 0 }).await;
+    app::monitor_loop(NoCycles, PowerUp { locomotive: ADC_TRACE_LOCOMOTIVE, release_count: 0 }).await;
 }
 
 /// Writes the frames as candump lines; ends the run after the end of the trace.

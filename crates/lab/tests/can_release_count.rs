@@ -1,0 +1,347 @@
+//! The session frame (layout 3) and its full release count, against the fourth black-box
+//! attacker's two findings that the 6-bit release number could not answer (can/README.md):
+//! - H1: the monitor stops, and a recording of an old session of the same locomotive whose
+//!   release number is 1 or 2 ahead modulo 64 is played onto the bus: it was taken as a restart
+//!   and its reports shown current;
+//! - H2: a man in the middle replaces a whole session by the session 64 releases earlier, at
+//!   the right moments: every frame was accepted and its reports shown current.
+//!
+//! The streams are built here from the core's own reporter (one power-up per session, as
+//! `host-sim replay` numbers a locomotive's traces), so the test needs no recorded file.
+
+use pbm::can::{CanFrame, CanReporter, Decoder, FrameError, MessageKind, PowerUp, Report};
+use pbm::report::{EstimatorState, FaultReport, StatusReport, Verdict};
+use pbm::FaultClass;
+
+/// One frame of a built stream: receive time, frame, and the session it was recorded in.
+#[derive(Debug, Clone, Copy)]
+struct Timed {
+    t: u64,
+    f: CanFrame,
+    session: usize,
+    injected: bool,
+}
+
+const LOCO: u8 = 1;
+/// Seconds of one session (one release, the valve open throughout).
+const SESSION_S: u64 = 12;
+/// Seconds between two sessions (a power cycle).
+const GAP_S: u64 = 5;
+
+/// The frames of session `k` of the locomotive (the controller kept `k` releases before it),
+/// starting at `start_us`: a power-up and a release command at the first sample, a report
+/// from 2.3 s on whose content depends on `k`.
+fn session(k: usize, start_us: u64) -> Vec<Timed> {
+    session_of(k, start_us, SESSION_S)
+}
+
+/// [`session`] lasting `seconds`.
+fn session_of(k: usize, start_us: u64, seconds: u64) -> Vec<Timed> {
+    let mut rep = CanReporter::new();
+    rep.set_identity(PowerUp { locomotive: LOCO, release_count: k as u32 });
+    rep.new_release();
+    let status =
+        StatusReport { sensor_fault: None, estimator: EstimatorState::Settled, pressure_mbar: 7_000, version: (0, 1) };
+    let class = [FaultClass::Normal, FaultClass::AirLeak, FaultClass::OrificeBlock][k % 3];
+    let mut out = Vec::new();
+    for n in 0..(seconds * 100) as u32 {
+        let fault = FaultReport {
+            verdict: Verdict::Class { class, confidence_pct: 90 },
+            time_since_release_cs: (n + 1) as u16,
+            supply_mbar: 7_700,
+            leak_um: 0,
+            release_completed: false,
+        };
+        let report = (n >= 230).then_some(&fault);
+        for f in rep.step(&status, report, true).as_slice() {
+            out.push(Timed { t: start_us + u64::from(n) * 10_000, f: *f, session: k, injected: false });
+        }
+    }
+    out
+}
+
+fn start_of(k: usize) -> u64 {
+    1_000_000 + k as u64 * (SESSION_S + GAP_S) * 1_000_000
+}
+
+/// Sessions `0..n`, one after another.
+fn sessions(n: usize) -> Vec<Timed> {
+    (0..n).flat_map(|k| session(k, start_of(k))).collect()
+}
+
+fn is_kind(f: &CanFrame, kind: MessageKind) -> bool {
+    MessageKind::of(f) == Ok(kind)
+}
+
+/// What became of the stream: reports shown current, per session and injected or not; frames
+/// flagged, by label.
+#[derive(Debug, Default)]
+struct Seen {
+    current_genuine: usize,
+    current_injected: usize,
+    reports_genuine: usize,
+    flagged_genuine: Vec<(u64, FrameError)>,
+    flagged_injected: Vec<FrameError>,
+    unconfirmed_injected: usize,
+}
+
+fn decode(stream: &[Timed]) -> Seen {
+    let mut d = Decoder::new();
+    let mut seen = Seen::default();
+    for e in stream {
+        let r = d.receive(e.t, &e.f);
+        match (r.result, e.injected) {
+            (Err(err), false) => seen.flagged_genuine.push((e.t, err)),
+            (Err(err), true) => seen.flagged_injected.push(err),
+            (Ok(Report::Fault(_)), injected) => {
+                let current = !r.stale && d.is_current(e.t, e.t);
+                if injected {
+                    seen.current_injected += usize::from(current);
+                    seen.unconfirmed_injected += usize::from(r.release_unconfirmed);
+                } else {
+                    seen.reports_genuine += 1;
+                    seen.current_genuine += usize::from(current);
+                }
+            }
+            (Ok(_), _) => {}
+        }
+    }
+    seen
+}
+
+/// 70 power-ups of one locomotive (its release number wraps at 64): nothing flagged, every
+/// report current, every report attributed to its full release count.
+#[test]
+fn seventy_sessions_across_the_wrap_decode_cleanly() {
+    let stream = sessions(70);
+    let seen = decode(&stream);
+    assert!(seen.flagged_genuine.is_empty(), "{:?}", &seen.flagged_genuine[..seen.flagged_genuine.len().min(5)]);
+    assert_eq!(seen.current_genuine, seen.reports_genuine);
+    assert!(seen.reports_genuine > 70 * 9);
+    // The count names the release: the last session's reports belong to count 71.
+    let mut d = Decoder::new();
+    let mut last = None;
+    for e in &stream {
+        let r = d.receive(e.t, &e.f);
+        if matches!(r.result, Ok(Report::Fault(_))) {
+            last = r.release_count;
+        }
+    }
+    assert_eq!(last, Some(69 + 2), "power-up and release command of the 70th session");
+}
+
+/// H2: session j (64 ≤ j < 70) replaced, heartbeats and reports and session frames alike, by
+/// the recording of session j − 64 (the same release number modulo 64), aligned at its start
+/// (and 5 ms, 30 ms early, 200 ms late). Its session frames are flagged (`wrong_release_count`:
+/// behind the count the receiver saw), and none of its reports is current; with its session
+/// frames stripped, none is current either (its count is never given). The genuine sessions
+/// around it are untouched.
+#[test]
+fn a_session_from_64_releases_earlier_is_never_current() {
+    for j in [64usize, 66, 69] {
+        for shift in [0i64, 5_000, -30_000, 200_000] {
+            for strip in [false, true] {
+                let mut stream: Vec<Timed> = sessions(70).into_iter().filter(|e| e.session != j).collect();
+                let dt = start_of(j) as i64 - start_of(j - 64) as i64 + shift;
+                stream.extend(
+                    session(j - 64, start_of(j - 64))
+                        .into_iter()
+                        .filter(|e| !(strip && is_kind(&e.f, MessageKind::Session)))
+                        .map(|e| Timed { t: e.t.saturating_add_signed(dt), injected: true, ..e }),
+                );
+                stream.sort_by_key(|e| e.t);
+                let seen = decode(&stream);
+                let what = format!("session {j} replaced, shift {shift} µs, session frames stripped: {strip}");
+                assert_eq!(seen.current_injected, 0, "{what}: {seen:?}");
+                assert!(seen.unconfirmed_injected > 0, "{what}: {seen:?}");
+                if !strip {
+                    assert!(
+                        seen.flagged_injected.iter().any(|e| e.label() == "wrong_release_count"),
+                        "{what}: {:?}",
+                        seen.flagged_injected
+                    );
+                }
+                assert!(seen.flagged_genuine.is_empty(), "{what}: {:?}", seen.flagged_genuine);
+                // Every genuine session's reports current (the one replaced is gone).
+                assert_eq!(seen.current_genuine, seen.reports_genuine, "{what}");
+            }
+        }
+    }
+}
+
+/// H1: the monitor stops after session j; 5–60 s later a recording of session j − 64 + m of the
+/// same locomotive is played onto the bus, its release number m ahead modulo 64 (1 and 2 were
+/// taken as a restart; 5–29 were not current; 32 and more flagged). With session frames its
+/// count is behind the newest seen, at every m: never current.
+#[test]
+fn an_old_recording_after_the_monitor_stopped_is_never_current() {
+    let j = 68;
+    for m in [1usize, 2, 3, 17, 40] {
+        for gap_s in [5u64, 20, 60] {
+            let mut stream: Vec<Timed> = sessions(j + 1);
+            let end = stream.last().map_or(0, |e| e.t);
+            let k = j - 64 + m;
+            let dt = (end + gap_s * 1_000_000) as i64 - start_of(k) as i64;
+            stream.extend(session(k, start_of(k)).into_iter().map(|e| Timed {
+                t: e.t.saturating_add_signed(dt),
+                injected: true,
+                ..e
+            }));
+            let seen = decode(&stream);
+            let what = format!("m {m}, {gap_s} s after the monitor stopped");
+            assert_eq!(seen.current_injected, 0, "{what}: {seen:?}");
+            assert!(seen.flagged_genuine.is_empty(), "{what}: {:?}", seen.flagged_genuine);
+            assert_eq!(seen.current_genuine, seen.reports_genuine, "{what}");
+        }
+    }
+}
+
+/// The genuine counterpart of the restart rule that H1 drove: a monitor power-cycled several
+/// times while this receiver heard nothing comes back with its release number several on.
+/// Without a count that could not be told from an old recording (its reports were never
+/// current); its session frame's count, newer than any seen, now shows it genuine.
+#[test]
+fn a_monitor_restarted_several_times_while_the_receiver_was_deaf_is_current() {
+    let mut stream = sessions(10);
+    // Sessions 10..14 unheard; 15 heard.
+    stream.extend(session(15, start_of(15)));
+    let seen = decode(&stream);
+    assert!(seen.flagged_genuine.is_empty(), "{:?}", seen.flagged_genuine);
+    assert_eq!(seen.current_genuine, seen.reports_genuine, "{seen:?}");
+}
+
+/// A session frame whose count moved far ahead while its CRC still fits (a corruption that kept
+/// the CRC, or a forgery): flagged, and it locks nothing out. Its session's count is in doubt
+/// until a session frame gives it again (none comes before that session ends: its last two
+/// reports are not current); every report of the restarts after it is current.
+#[test]
+fn a_count_far_ahead_is_flagged_and_locks_nothing_out() {
+    use pbm::can::codec::{decode_frame, encode_session};
+    let mut stream = sessions(8);
+    // The periodic session frame of session 3 (heartbeat 10), its count 1 000 000 on.
+    let i = stream
+        .iter()
+        .position(|e| {
+            e.session == 3
+                && matches!(decode_frame(&e.f, pbm::can::Identity::default()), Ok((Report::Session(l), _)) if l.counter == 10)
+        })
+        .expect("the periodic session frame");
+    let Ok((Report::Session(link), _)) = decode_frame(&stream[i].f, pbm::can::Identity::default()) else {
+        unreachable!()
+    };
+    stream[i] = Timed {
+        f: encode_session(pbm::can::SessionLink { release_count: link.release_count + 64 * 15_625, ..link }),
+        injected: true,
+        ..stream[i]
+    };
+    let seen = decode(&stream);
+    assert_eq!(seen.flagged_injected.iter().map(|e| e.label()).collect::<Vec<_>>(), ["wrong_release_count"]);
+    assert!(seen.flagged_genuine.is_empty(), "{:?}", seen.flagged_genuine);
+    assert_eq!(seen.current_genuine + 2, seen.reports_genuine, "{seen:?}");
+    let after: Vec<Timed> = stream.iter().copied().filter(|e| e.session >= 4).collect();
+    let mut d = Decoder::new();
+    for e in &stream {
+        let r = d.receive(e.t, &e.f);
+        if e.session >= 4 && matches!(r.result, Ok(Report::Fault(_))) {
+            assert!(!r.stale && d.is_current(e.t, e.t), "{}: {r:?}", e.t);
+        }
+    }
+    assert!(!after.is_empty());
+}
+
+/// A receiver deaf for the first 4.5 s of a session of a locomotive whose count it knows: it
+/// hears the session from its fifth heartbeat on, with no session frame until the periodic one
+/// at heartbeat 10. The reports before that are shown, not current ("cannot tell yet": a
+/// recording 64 releases old looks the same); from the session frame on they are current.
+/// Nothing is flagged.
+#[test]
+fn a_receiver_joining_a_session_late_waits_for_its_session_frame() {
+    let joined = start_of(4) + 4_500_000;
+    let stream: Vec<Timed> = sessions(6).into_iter().filter(|e| e.session != 4 || e.t >= joined).collect();
+    let mut d = Decoder::new();
+    let (mut waiting, mut current_after) = (0, 0);
+    let confirmed_at = start_of(4) + 10_000_000;
+    for e in &stream {
+        let r = d.receive(e.t, &e.f);
+        assert!(r.result.is_ok(), "{}: {r:?}", e.t);
+        if e.session == 4 && matches!(r.result, Ok(Report::Fault(_))) {
+            if e.t < confirmed_at {
+                assert!(r.release_unconfirmed && r.stale && !d.is_current(e.t, e.t), "{}: {r:?}", e.t);
+                waiting += 1;
+            } else {
+                assert!(!r.stale && d.is_current(e.t, e.t), "{}: {r:?}", e.t);
+                current_after += 1;
+            }
+        }
+    }
+    assert!(waiting >= 4 && current_after >= 2, "{waiting} {current_after}");
+}
+
+/// The sixth black-box attacker's F2: the monitor stops 20 s into session 68, and
+/// 1–60 s later a recording of session 4 (the same release number, 64 releases earlier) carries
+/// on its heartbeat counter, aligned so that every counter comes when the live one would have.
+/// It looks like the monitor heard again after a receiver outage. After a silence (3 s or more)
+/// the session's count must be given again, and the recording's session frames carry the old
+/// count: none of its reports is current. Within the heartbeat timeout (1 s) nothing tells it
+/// from the monitor until its first session frame (flagged) or the first one missing: its
+/// reports are current for at most that long (10 s), and never after.
+#[test]
+fn a_recording_that_carries_on_the_heartbeat_counter_is_not_current_for_long() {
+    let (j, k) = (68usize, 4usize);
+    for gap_s in [1u64, 5, 30, 60] {
+        for strip in [false, true] {
+            let stop = start_of(j) + 20_000_000;
+            let mut stream: Vec<Timed> = sessions(j);
+            stream.extend(session_of(j, start_of(j), 120).into_iter().filter(|e| e.t < stop));
+            let resume = stop + gap_s * 1_000_000;
+            let dt = start_of(j) as i64 - start_of(k) as i64;
+            stream.extend(
+                session_of(k, start_of(k), 120)
+                    .into_iter()
+                    .map(|e| Timed { t: e.t.saturating_add_signed(dt), injected: true, ..e })
+                    .filter(|e| e.t >= resume && !(strip && is_kind(&e.f, MessageKind::Session))),
+            );
+            let mut d = Decoder::new();
+            let mut last_current = None;
+            for e in &stream {
+                let r = d.receive(e.t, &e.f);
+                if e.injected && matches!(r.result, Ok(Report::Fault(_))) && !r.stale && d.is_current(e.t, e.t) {
+                    last_current = Some(e.t);
+                }
+                if !e.injected {
+                    assert!(r.result.is_ok(), "{gap_s} s {strip}: genuine {}: {r:?}", e.t);
+                }
+            }
+            let what = format!("gap {gap_s} s, session frames stripped: {strip}");
+            match last_current {
+                None => {}
+                Some(t) => {
+                    assert!(gap_s < 3, "{what}: a report shown current at {t}");
+                    assert!(
+                        t < resume + 11_000_000,
+                        "{what}: current {} s after the takeover",
+                        (t - resume) / 1_000_000
+                    );
+                }
+            }
+        }
+    }
+}
+
+/// The sixth black-box attacker's F3: a monitor restarted after 32 or more releases
+/// this receiver did not hear has a 6-bit release number that reads as behind (or equal) and its
+/// first heartbeat is refused; every later one was too, for good. Its session frame's count,
+/// newer than any seen, now shows the restart: the session opens on it, and only that first
+/// status frame stays flagged.
+#[test]
+fn a_monitor_restarted_after_many_unheard_releases_is_current() {
+    for unheard in [31usize, 32, 40, 63, 64, 100] {
+        let mut stream = sessions(10);
+        let back = 10 + unheard;
+        stream.extend(session_of(back, start_of(back), 30));
+        let seen = decode(&stream);
+        let what = format!("{unheard} sessions unheard");
+        assert!(seen.flagged_genuine.len() <= 1, "{what}: {:?}", seen.flagged_genuine);
+        assert_eq!(seen.current_genuine, seen.reports_genuine, "{what}: {seen:?}");
+    }
+}
