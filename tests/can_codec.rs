@@ -838,11 +838,15 @@ fn a_latency_step_flags_one_heartbeat_then_resynchronises() {
             assert!(!d.is_current(*t, *t));
         }
         // The fault reports of the heartbeat period after the re-lock are not current (a stream
-        // still at the old phase would not have shown yet); nothing else is stale after it, and
-        // one stream whose phase stepped is never two.
+        // still at the old phase would not have shown yet), nor those before the session frame
+        // that gives the count again (the periodic one after heartbeat 20, at 20.4 s: a re-lock
+        // may have switched to a recording that carries on the heartbeat counter); nothing
+        // else is stale after it, and one stream whose phase stepped is never two.
         if *t >= 12_400_000 {
-            let unconfirmed = *t <= 12_400_000 + 1_050_000 && r.relock_unconfirmed;
+            let unconfirmed =
+                (*t <= 12_400_000 + 1_050_000 && r.relock_unconfirmed) || (*t < 20_400_000 && r.release_unconfirmed);
             assert!(r.result.is_ok() && r.stale == unconfirmed && r.lost_fault_reports == 0, "{t}: {r:?}");
+            assert_eq!(r.release_unconfirmed, *t < 20_400_000 && matches!(r.result, Ok(Report::Fault(_))), "{t}");
             assert!(!r.two_streams, "{t}: {r:?}");
         }
     }

@@ -128,6 +128,18 @@
 //! ([`Reception::delayed_stream`]). Two heartbeats of another locomotive, one continuing the
 //! other, outvote a session that rests on one frame.
 //!
+//! # Release count (session frame, layout 3)
+//!
+//! The session frame gives the full 32-bit release count, of which the release number is the
+//! low 6 bits (`can/README.md` lists its checks). Once the receiver knows a
+//! locomotive's count, a session of that locomotive is current only while a session frame has
+//! given its count ([`Reception::release_unconfirmed`]): not after a restart or a silence of the
+//! heartbeat until the next session frame, nor after a re-lock, a session frame with another
+//! count ([`FrameError::WrongReleaseCount`]) or a lost one ([`Reception::lost_session`]). So a
+//! recording of a session 64 (128, …) releases old, which the 6-bit number cannot tell, is never
+//! shown current for longer than one period of the session frames. A count newer than any seen
+//! shows a restart genuine however far its release number moved.
+//!
 //! Before any heartbeat a fault report cannot be attributed: [`FrameError::NoHeartbeat`]. After
 //! a silence (or in a session resting on one frame) a report whose CRC fits the locomotive only
 //! at another release is held as unattributed, not current, until the next accepted heartbeat
@@ -718,6 +730,20 @@ fn count_at_release((count, base): (u32, u8), release: u8) -> u32 {
     count.wrapping_add_signed(if k >= 32 { k - 64 } else { k })
 }
 
+/// The counter of the last heartbeat from `before`'s (the last accepted) up to the one before
+/// `next` that the sender sends a session frame after: a multiple of
+/// [`l::SESSION_EVERY_STATUS_FRAMES`], or `before`'s when it was the first heartbeat of a new
+/// release number. Over at most 64 heartbeats (a longer gap is a silence: the count must be
+/// given again anyway).
+fn last_due_session(before: &Session, next: u16) -> Option<u16> {
+    let d = next.wrapping_sub(before.counter) % COUNTER_MOD;
+    let first_of_release = before.release_before_us.is_some() && before.release_since_us == before.at_us;
+    (0..d.min(64))
+        .rev()
+        .map(|k| before.counter.wrapping_add(k) % COUNTER_MOD)
+        .find(|&c| c % l::SESSION_EVERY_STATUS_FRAMES == 0 || (c == before.counter && first_of_release))
+}
+
 /// Release `b` is `a` or later (6-bit numbers, less than half the range ahead).
 fn release_not_before(b: u8, a: u8) -> bool {
     (b.wrapping_sub(a) & 0x3F) < 32
@@ -1120,11 +1146,10 @@ impl Decoder {
     /// Accepts a status frame that continues session `s` (`c`: how, from [`continuation`]).
     fn accept_status(&mut self, mut s: Session, now: u64, link: &StatusLink, c: Continues, rec: &mut Reception) {
         let before = s;
-        // The heartbeat before was due a session frame that never came.
-        rec.lost_session = c.periods == 1
-            && before.count_at != Some(before.counter)
-            && (before.counter % l::SESSION_EVERY_STATUS_FRAMES == 0
-                || (before.release_before_us.is_some() && before.release_since_us == before.at_us))
+        // The last heartbeat before this one that was due a session frame (the one before, or one
+        // lost between: a stream whose heartbeats at multiples of 10 are dropped, with their
+        // session frames, is no different, sixth black-box attacker N1) got none.
+        rec.lost_session = last_due_session(&before, link.counter).is_some_and(|due| before.count_at != Some(due))
             && self.st.newest_count.get(usize::from(before.identity.locomotive & 0x3F)).is_some_and(Option::is_some);
         // A session frame due after the heartbeat before did not come: the count is in doubt
         // until the next one gives it (a stream stripped of its session frames is not vouched
@@ -2142,6 +2167,11 @@ impl Decoder {
         if let (Some(s), Some((r, shift)), Ok(report)) = (judged, run, decode_signals(MessageKind::Status, bits)) {
             if r.len >= RELOCK_RUN {
                 let mut moved = s.shifted(shift);
+                // A re-lock switched the receiver onto a stream at another phase (after a
+                // silence, or a recording that carries on the heartbeat counter: sixth black-box
+                // attacker N2): its count must be given again by a session frame.
+                moved.count_before_silence = moved.count_base.or(moved.count_before_silence);
+                moved.count_base = None;
                 if let Ok(c) = continuation(&moved, now, &link) {
                     // (The heartbeats of the run before this one were received, flagged: not lost.)
                     moved.overdue_reported = moved.overdue_reported.max(u16::from(r.len - 1));

@@ -9,6 +9,7 @@
 //! The streams are built here from the core's own reporter (one power-up per session, as
 //! `host-sim replay` numbers a locomotive's traces), so the test needs no recorded file.
 
+use embedded_can::Frame as _;
 use pbm::can::{CanFrame, CanReporter, Decoder, FrameError, MessageKind, PowerUp, Report};
 use pbm::report::{EstimatorState, FaultReport, StatusReport, Verdict};
 use pbm::FaultClass;
@@ -277,46 +278,52 @@ fn a_receiver_joining_a_session_late_waits_for_its_session_frame() {
     assert!(waiting >= 4 && current_after >= 2, "{waiting} {current_after}");
 }
 
-/// The sixth black-box attacker's F2: the monitor stops 20 s into session 68, and
-/// 1–60 s later a recording of session 4 (the same release number, 64 releases earlier) carries
-/// on its heartbeat counter, aligned so that every counter comes when the live one would have.
-/// It looks like the monitor heard again after a receiver outage. After a silence (3 s or more)
-/// the session's count must be given again, and the recording's session frames carry the old
-/// count: none of its reports is current. Within the heartbeat timeout (1 s) nothing tells it
-/// from the monitor until its first session frame (flagged) or the first one missing: its
-/// reports are current for at most that long (10 s), and never after.
+/// The sixth black-box attacker's F2 (and N1, N2 of the round after it): the monitor stops 20 s
+/// into session 68, and 1–60 s later a recording of session 4 (the same release number, 64
+/// releases earlier) carries on its heartbeat counter, so that every counter comes when the live
+/// one would have (or 0.4 s or 4 s later: a phase step the receiver re-locks onto, N2); with or
+/// without its session frames, and with or without its heartbeats at multiples of 10 (whose
+/// session frames the receiver would miss, N1). It looks like the monitor heard again after a
+/// receiver outage. After a silence (3 s or more), or a re-lock, the session's count must be
+/// given again, and the recording's session frames carry the old count: none of its reports is
+/// current. Within the heartbeat timeout nothing tells it from the monitor until its first
+/// session frame (flagged) or the first one missing: its reports are current for at most that
+/// long (10 s), and never after.
 #[test]
 fn a_recording_that_carries_on_the_heartbeat_counter_is_not_current_for_long() {
+    use pbm::can::codec::status_link;
     let (j, k) = (68usize, 4usize);
+    let counter = |f: &CanFrame| status_link(u64::from_le_bytes(f.data().try_into().unwrap_or([0; 8]))).counter;
     for gap_s in [1u64, 5, 30, 60] {
-        for strip in [false, true] {
-            let stop = start_of(j) + 20_000_000;
-            let mut stream: Vec<Timed> = sessions(j);
-            stream.extend(session_of(j, start_of(j), 120).into_iter().filter(|e| e.t < stop));
-            let resume = stop + gap_s * 1_000_000;
-            let dt = start_of(j) as i64 - start_of(k) as i64;
-            stream.extend(
-                session_of(k, start_of(k), 120)
-                    .into_iter()
-                    .map(|e| Timed { t: e.t.saturating_add_signed(dt), injected: true, ..e })
-                    .filter(|e| e.t >= resume && !(strip && is_kind(&e.f, MessageKind::Session))),
-            );
-            let mut d = Decoder::new();
-            let mut last_current = None;
-            for e in &stream {
-                let r = d.receive(e.t, &e.f);
-                if e.injected && matches!(r.result, Ok(Report::Fault(_))) && !r.stale && d.is_current(e.t, e.t) {
-                    last_current = Some(e.t);
+        for phase_us in [0u64, 400_000, 4_000_000] {
+            for (strip, skip10) in [(false, false), (true, false), (true, true)] {
+                let stop = start_of(j) + 20_000_000;
+                let mut stream: Vec<Timed> = sessions(j);
+                stream.extend(session_of(j, start_of(j), 120).into_iter().filter(|e| e.t < stop));
+                let resume = stop + gap_s * 1_000_000;
+                let dt = start_of(j) as i64 - start_of(k) as i64 + phase_us as i64;
+                stream.extend(
+                    session_of(k, start_of(k), 120)
+                        .into_iter()
+                        .map(|e| Timed { t: e.t.saturating_add_signed(dt), injected: true, ..e })
+                        .filter(|e| e.t >= resume && !(strip && is_kind(&e.f, MessageKind::Session)))
+                        .filter(|e| !(skip10 && is_kind(&e.f, MessageKind::Status) && counter(&e.f) % 10 == 0)),
+                );
+                let mut d = Decoder::new();
+                let mut last_current = None;
+                for e in &stream {
+                    let r = d.receive(e.t, &e.f);
+                    if e.injected && matches!(r.result, Ok(Report::Fault(_))) && !r.stale && d.is_current(e.t, e.t) {
+                        last_current = Some(e.t);
+                    }
+                    if !e.injected {
+                        assert!(r.result.is_ok(), "genuine {}: {r:?}", e.t);
+                    }
                 }
-                if !e.injected {
-                    assert!(r.result.is_ok(), "{gap_s} s {strip}: genuine {}: {r:?}", e.t);
-                }
-            }
-            let what = format!("gap {gap_s} s, session frames stripped: {strip}");
-            match last_current {
-                None => {}
-                Some(t) => {
-                    assert!(gap_s < 3, "{what}: a report shown current at {t}");
+                let what =
+                    format!("gap {gap_s} s, phase +{phase_us} µs, stripped {strip}, 10th heartbeats dropped {skip10}");
+                if let Some(t) = last_current {
+                    assert!(gap_s * 1_000_000 + phase_us < 3_000_000, "{what}: a report shown current at {t}");
                     assert!(
                         t < resume + 11_000_000,
                         "{what}: current {} s after the takeover",
