@@ -153,6 +153,11 @@ use super::codec::{
 };
 use super::layout::{self as l, STATUS};
 
+/// Fault reports a status frame can come after without having counted them: those sent in its
+/// own tick and within the latency step followed after it (a status frame delayed by up to
+/// [`MAX_LATENCY_STEP_US`] against the reports; the sender sends at most one per 100 ms).
+const OVERTAKEN_MAX: usize = 4;
+
 /// Silence of the heartbeat after which the release number no longer gives a session's release
 /// count (64 releases at one a second, less the power-up and one): the next session frame must.
 const RELEASE_COUNT_SILENCE_US: u64 = 62 * STATUS.cycle_ms as u64 * 1000;
@@ -358,6 +363,10 @@ struct Session {
     /// the same as a monitor heard again), and the session frame must carry exactly the count
     /// it implies.
     count_before_silence: Option<(u32, u8)>,
+    /// Receive times of the last accepted fault reports, newest first (0: none): a status frame
+    /// delayed by up to the latency step followed comes after the reports sent in that time,
+    /// which its count does not include yet ([`OVERTAKEN_MAX`]).
+    recent_reports_us: [u64; OVERTAKEN_MAX],
 }
 
 /// A status frame's `FaultReportCount` that contradicts the chain of the accepted reports'
@@ -1133,6 +1142,7 @@ impl Decoder {
             count_base: None,
             count_at: None,
             count_before_silence: None,
+            recent_reports_us: [0; OVERTAKEN_MAX],
         });
         // A tentative session rests on one frame, which may be a replay: what it says of the
         // locomotive's newest release is believed only once a second heartbeat confirms it
@@ -1204,9 +1214,18 @@ impl Decoder {
         // (one per 100 ms), so the count's step is the number sent; after a longer gap it is
         // ambiguous and the receiver believes what it accepted.
         let count = link.fault_count & 0xF;
-        let since_report = s.fault.map_or(u64::MAX, |f| now.saturating_sub(f.at_us));
-        // The report of this frame's own tick may come first without being counted by it.
-        let own_tick = since_report <= MAX_LATENCY_STEP_US + TOLERANCE_US;
+        // The last `k` reports accepted may have been sent at or after this frame's tick, and come
+        // first, not counted by it: the report of its own tick, and those of the latency step
+        // followed after it when the status frame is the delayed one (a gateway queueing the
+        // status identifier: 0.2–0.3 s had about 165 genuine reports withdrawn per log, fourth
+        // black-box attacker). All of them within that window before this frame.
+        let recent = s.recent_reports_us;
+        let overtaken = |k: u8| {
+            (1..=OVERTAKEN_MAX as u8).contains(&k)
+                && recent
+                    .get(usize::from(k) - 1)
+                    .is_some_and(|&at| at > 0 && now.saturating_sub(at) <= MAX_LATENCY_STEP_US + TOLERANCE_US)
+        };
         // A count of the status frame before that contradicted the reports' chain is decided
         // by this one: whichever needs fewer lost reports to reach this count was right.
         let mut claim_lost = 0;
@@ -1231,7 +1250,7 @@ impl Decoder {
                 let last = s.next_fault.wrapping_sub(1).wrapping_sub(s.status_count) & 0xF;
                 if last < sent {
                     s.unconfirmed = None;
-                } else if !(last == sent && own_tick) {
+                } else if !overtaken(last.wrapping_sub(sent).wrapping_add(1) & 0xF) {
                     // The monitor never sent them, or this count is corrupt: withdrawn once the
                     // next frame agrees with this count ([`CountClaim`]).
                     withdraws = true;
@@ -1251,7 +1270,7 @@ impl Decoder {
         if withdraws {
             // Pending: the chain stays as the reports left it.
             s.count_claim = Some(CountClaim { count, chain_next, withdraws: true, lost: 0, provisional: 0 });
-        } else if behind > 0 && u64::from(behind) <= reports_possible(learnt, now) && !(behind == 15 && own_tick) {
+        } else if behind > 0 && u64::from(behind) <= reports_possible(learnt, now) && !overtaken(16 - behind) {
             s.owed_fault = Some(count.wrapping_sub(1) & 0xF);
             s.next_fault = count;
             if behind > 1 && s.last_fault_counter.is_some() {
@@ -1261,7 +1280,7 @@ impl Decoder {
             } else {
                 lost += behind - 1;
             }
-        } else if behind > 0 && !(behind == 15 && own_tick) {
+        } else if behind > 0 && !overtaken(16 - behind) {
             s.next_fault = count;
             if s.last_fault_counter.is_some() {
                 s.count_claim = Some(CountClaim { count, chain_next, withdraws: false, lost: 0, provisional: 0 });
@@ -1798,6 +1817,8 @@ impl Decoder {
         rec.lost_fault_reports = lost.saturating_add(claim_lost);
         s.next_fault = (counter + 1) & 0xF;
         s.last_fault_counter = Some(counter);
+        s.recent_reports_us.rotate_right(1);
+        s.recent_reports_us[0] = now;
         // Heartbeats overdue at this moment were lost (a deleted status frame is noticed even
         // when no status frame follows before the sender stops).
         let overdue = (now.saturating_sub(s.at_us).saturating_sub(TOLERANCE_US) / STATUS_PERIOD_US)

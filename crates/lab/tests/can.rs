@@ -375,3 +375,24 @@ fn a_closed_report_repeated_while_the_valve_stays_open_is_accepted() {
     assert_eq!(s.flagged_total(), 0, "{s}\n{shown}");
     assert!(shown.lines().last().is_some_and(|l| !l.contains("air_leak")), "the withdrawal is shown: {shown}");
 }
+
+/// A gateway that queues only the status identifier (and the session frame after it) by up to
+/// the latency step the receiver follows: each status frame then comes after the fault reports
+/// sent in that time, which its count does not include yet. They were withdrawn as "not sent by
+/// the monitor" (fourth black-box attacker: about 165 genuine reports per log at 0.2–0.3 s,
+/// and 61–80 frames flagged after them). Now nothing is flagged or withdrawn, and at most one
+/// report is shown stale (the first of a burst, before the delayed heartbeat's phase is
+/// followed).
+#[test]
+fn status_frames_alone_delayed_withdraw_no_genuine_report() {
+    let clean = demo_frames();
+    for delay_us in [60_000u64, 150_000, 200_000, 250_000, 300_000] {
+        let mut frames: Vec<(u64, CanFrame)> =
+            clean.iter().map(|&(t, f)| (if is_fault(&f) { t } else { t + delay_us }, f)).collect();
+        frames.sort_by_key(|(t, _)| *t);
+        let (s, _) = display(&frames);
+        assert_eq!((s.flagged_total(), s.withdrawn, s.lost_fault_reports), (0, 0, 0), "{delay_us} µs: {s}");
+        assert!(s.stale_reports <= 1, "{delay_us} µs: {s}");
+        assert_eq!(s.fault_reports, clean.iter().filter(|(_, f)| is_fault(f)).count() as u64);
+    }
+}
