@@ -77,9 +77,9 @@ pub struct PowerUp {
     pub release_count: u32,
 }
 
-/// Decides, sample by sample, which fault-report and status frames to send, and keeps their
-/// rolling counters.
-#[derive(Debug, Clone, PartialEq, Eq, Default)]
+/// Decides, sample by sample, which fault-report, status and session frames to send, and
+/// keeps their rolling counters and the release count.
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct CanReporter {
     /// Samples until the next status frame (0 = this sample).
     status_countdown: u32,
@@ -103,8 +103,15 @@ pub struct CanReporter {
     samples_since_release: u32,
 }
 
+impl Default for CanReporter {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
 impl CanReporter {
-    /// A reporter that has sent nothing yet (both counters start at 0).
+    /// A reporter that has sent nothing yet (both counters start at 0; release count 0 until
+    /// [`Self::set_identity`]).
     pub const fn new() -> Self {
         Self {
             status_countdown: 0,
