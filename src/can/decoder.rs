@@ -357,12 +357,10 @@ struct Session {
     count_base: Option<(u32, u8)>,
     /// Heartbeat counter whose session frame was accepted (one per heartbeat).
     count_at: Option<u16>,
-    /// The count the session had before a silence of its heartbeat (as `count_base`): a stream
-    /// that continues the session after the silence must show it again in a session frame
-    /// before its reports are current (a recording that carries on the heartbeat counter looks
-    /// the same as a monitor heard again), and the session frame must carry exactly the count
-    /// it implies.
-    count_before_silence: Option<(u32, u8)>,
+    /// The count the session had before it was put in doubt (as `count_base`; see
+    /// [`Session::doubt_count`]): the next session frame must carry exactly the count it implies
+    /// before the session's reports are current again.
+    count_to_confirm: Option<(u32, u8)>,
     /// Receive times of the last accepted fault reports, newest first (0: none): a status frame
     /// delayed by up to the latency step followed comes after the reports sent in that time,
     /// which its count does not include yet ([`OVERTAKEN_MAX`]).
@@ -407,6 +405,20 @@ impl CountClaim {
 impl Session {
     /// When the receiver last learnt the sender's fault-report count: the last accepted status
     /// frame (`FaultReportCount`) or fault report (its counter), whichever came later.
+    /// The count is in doubt (after a silence of the heartbeat or a re-lock, a session frame
+    /// with another count, or a due one missing): its reports are not current until a session
+    /// frame gives it again, which must be the count it implies ([`Self::count_to_confirm`]).
+    fn doubt_count(&mut self) {
+        self.count_to_confirm = self.count_base.or(self.count_to_confirm);
+        self.count_base = None;
+    }
+
+    /// A session frame after the heartbeat with counter `counter` gave the count of `release`.
+    fn give_count(&mut self, count: u32, release: u8, counter: u16) {
+        self.count_base = Some((count, release));
+        self.count_at = Some(counter);
+    }
+
     /// The full release count of the session's release, if a session frame gave it.
     fn release_count(&self) -> Option<u32> {
         self.count_of_release(self.identity.release)
@@ -730,6 +742,13 @@ fn diff(a: u64, b: u64) -> i64 {
 
 fn ms(us: i64) -> i32 {
     (us / 1000).clamp(i64::from(i32::MIN), i64::from(i32::MAX)) as i32
+}
+
+/// A count `got` newer than or equal to the locomotive's newest `known` (last heard at `heard`),
+/// by no more than the time since allows: the power-up and one release a second (as the release
+/// rules assume; a corruption far ahead is refused and locks nothing out).
+fn count_within_time(known: u32, heard: u64, got: u32, now: u64) -> bool {
+    got >= known && u64::from(got - known) <= 2 + now.saturating_sub(heard) / STATUS_PERIOD_US
 }
 
 /// The full count of release number `release`, from the count of release number `base`
@@ -1141,7 +1160,7 @@ impl Decoder {
             relocked_us: 0,
             count_base: None,
             count_at: None,
-            count_before_silence: None,
+            count_to_confirm: None,
             recent_reports_us: [0; OVERTAKEN_MAX],
         });
         // A tentative session rests on one frame, which may be a replay: what it says of the
@@ -1160,13 +1179,12 @@ impl Decoder {
         // lost between: a stream whose heartbeats at multiples of 10 are dropped, with their
         // session frames, is no different, sixth black-box attacker N1) got none.
         rec.lost_session = last_due_session(&before, link.counter).is_some_and(|due| before.count_at != Some(due))
-            && self.st.newest_count.get(usize::from(before.identity.locomotive & 0x3F)).is_some_and(Option::is_some);
+            && self.newest_count(before.identity.locomotive).is_some();
         // A session frame due after the heartbeat before did not come: the count is in doubt
         // until the next one gives it (a stream stripped of its session frames is not vouched
         // for longer than one period of them).
         if rec.lost_session {
-            s.count_before_silence = s.count_base.or(s.count_before_silence);
-            s.count_base = None;
+            s.doubt_count();
         }
         // After a silence of the heartbeat the next session frame must give the count again:
         // a stream that continues the session in time may be a recording that carries on its
@@ -1179,9 +1197,10 @@ impl Decoder {
         let count_heard_since =
             s.count_at.is_some_and(|c| (1..COUNTER_MOD / 2).contains(&(c.wrapping_sub(s.counter) % COUNTER_MOD)));
         if silence > HEARTBEAT_TIMEOUT_US && !count_heard_since {
-            s.count_before_silence =
-                s.count_base.or(s.count_before_silence).filter(|_| silence < RELEASE_COUNT_SILENCE_US);
-            s.count_base = None;
+            s.doubt_count();
+            if silence >= RELEASE_COUNT_SILENCE_US {
+                s.count_to_confirm = None;
+            }
         }
         let d = c.periods;
         // (The heartbeat before this one at its phase was received, flagged: not lost.)
@@ -1386,8 +1405,12 @@ impl Decoder {
     /// The session's release count is not known while the receiver knows its locomotive's
     /// ([`Reception::release_unconfirmed`]).
     fn count_unconfirmed(&self, s: &Session) -> bool {
-        s.count_base.is_none()
-            && self.st.newest_count.get(usize::from(s.identity.locomotive & 0x3F)).is_some_and(Option::is_some)
+        s.count_base.is_none() && self.newest_count(s.identity.locomotive).is_some()
+    }
+
+    /// The newest release count seen from the locomotive, and when it was last heard.
+    fn newest_count(&self, locomotive: u8) -> Option<(u32, u64)> {
+        self.st.newest_count.get(usize::from(locomotive & 0x3F)).copied().flatten()
     }
 
     /// The full release count of an accepted frame of `identity`, when a session frame gave it.
@@ -1458,8 +1481,7 @@ impl Decoder {
             return Err(FrameError::WrongRelease { expected: s.identity.release, got: link.release() });
         }
         let got = link.release_count;
-        let newest = self.st.newest_count.get(usize::from(link.locomotive & 0x3F)).copied().flatten();
-        let implied = s.count_base.or(s.count_before_silence).map(|base| count_at_release(base, link.release()));
+        let implied = s.count_base.or(s.count_to_confirm).map(|base| count_at_release(base, link.release()));
         if let Some(known) = implied {
             if got != known {
                 // Not this session's count: a recording that carries on the session's heartbeat
@@ -1467,14 +1489,12 @@ impl Decoder {
                 // frame gives it again (its reports are not current meanwhile): the one
                 // exception to "a flagged frame moves nothing", and it only withholds.
                 if let Some(o) = self.st.session.as_mut() {
-                    o.count_before_silence = o.count_base.or(o.count_before_silence);
-                    o.count_base = None;
+                    o.doubt_count();
                 }
                 return Err(FrameError::WrongReleaseCount { known, got });
             }
-        } else if let Some((known, at)) = newest {
-            let allowed = 2 + now.saturating_sub(at) / STATUS_PERIOD_US;
-            if got < known || u64::from(got - known) > allowed {
+        } else if let Some((known, heard)) = self.newest_count(link.locomotive) {
+            if !count_within_time(known, heard, got, now) {
                 return Err(FrameError::WrongReleaseCount { known, got });
             }
             if got > known {
@@ -1483,8 +1503,7 @@ impl Decoder {
                 s.restart_jump = 0;
             }
         }
-        s.count_base = Some((got, link.release()));
-        s.count_at = Some(link.counter);
+        s.give_count(got, link.release(), link.counter);
         self.st.session = Some(s);
         if !s.tentative {
             self.note_count(s.identity.locomotive, got, now);
@@ -1517,17 +1536,16 @@ impl Decoder {
         if !(0..=TOLERANCE_US as i64).contains(&diff(now, at)) {
             return Err(FrameError::Untimely { off_ms: ms(diff(now, at)) });
         }
-        let Some((known, heard)) = self.st.newest_count.get(usize::from(loco)).copied().flatten() else {
+        let Some((known, heard)) = self.newest_count(loco) else {
             return Err(FrameError::NoHeartbeat);
         };
         let got = link.release_count;
-        if got <= known || u64::from(got - known) > 2 + now.saturating_sub(heard) / STATUS_PERIOD_US {
+        if got == known || !count_within_time(known, heard, got, now) {
             return Err(FrameError::WrongReleaseCount { known, got });
         }
         self.open(at, status, true, rec);
         if let Some(s) = self.st.session.as_mut() {
-            s.count_base = Some((got, link.release()));
-            s.count_at = Some(link.counter);
+            s.give_count(got, link.release(), link.counter);
         }
         Ok(())
     }
@@ -2191,8 +2209,7 @@ impl Decoder {
                 // A re-lock switched the receiver onto a stream at another phase (after a
                 // silence, or a recording that carries on the heartbeat counter: sixth black-box
                 // attacker N2): its count must be given again by a session frame.
-                moved.count_before_silence = moved.count_base.or(moved.count_before_silence);
-                moved.count_base = None;
+                moved.doubt_count();
                 if let Ok(c) = continuation(&moved, now, &link) {
                     // (The heartbeats of the run before this one were received, flagged: not lost.)
                     moved.overdue_reported = moved.overdue_reported.max(u16::from(r.len - 1));

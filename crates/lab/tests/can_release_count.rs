@@ -239,15 +239,16 @@ fn a_count_far_ahead_is_flagged_and_locks_nothing_out() {
     assert_eq!(seen.flagged_injected.iter().map(|e| e.label()).collect::<Vec<_>>(), ["wrong_release_count"]);
     assert!(seen.flagged_genuine.is_empty(), "{:?}", seen.flagged_genuine);
     assert_eq!(seen.current_genuine + 2, seen.reports_genuine, "{seen:?}");
-    let after: Vec<Timed> = stream.iter().copied().filter(|e| e.session >= 4).collect();
     let mut d = Decoder::new();
+    let mut later_reports = 0;
     for e in &stream {
         let r = d.receive(e.t, &e.f);
         if e.session >= 4 && matches!(r.result, Ok(Report::Fault(_))) {
             assert!(!r.stale && d.is_current(e.t, e.t), "{}: {r:?}", e.t);
+            later_reports += 1;
         }
     }
-    assert!(!after.is_empty());
+    assert!(later_reports > 0);
 }
 
 /// A receiver deaf for the first 4.5 s of a session of a locomotive whose count it knows: it
