@@ -791,16 +791,8 @@ fn audit_line(a: &AuditCase) -> (String, String) {
     let truth =
         a.truth.iter().map(|(e, v)| format!("{} = {v:.4} {}", e.name(), e.unit())).collect::<Vec<_>>().join(" + ");
     let truth = if truth.is_empty() { "none".to_owned() } else { truth };
-    let named = if a.outcome.cause_effects.is_empty() {
-        a.outcome.cause.clone()
-    } else {
-        a.outcome
-            .cause_effects
-            .iter()
-            .map(|(e, v, u)| format!("{} = {v:.4} ± {u:.4} {}", e.name(), e.unit()))
-            .collect::<Vec<_>>()
-            .join(" + ")
-    };
+    let terms = a.outcome.chosen.terms_text();
+    let named = if terms.is_empty() { a.outcome.cause.clone() } else { terms.join(" + ") };
     (truth, named)
 }
 
@@ -1203,7 +1195,12 @@ fn audits_side_by_side(r: &DemoResults) -> Table {
             let named = if o.cause_effects.is_empty() {
                 o.cause.replace('_', " ")
             } else {
-                o.cause_effects.iter().map(|(m, v, _)| effect_words(*m, *v)).collect::<Vec<_>>().join(" and ")
+                o.cause_effects
+                    .iter()
+                    .map(|(m, v, _)| effect_words(*m, *v))
+                    .chain(o.cause_parameter.map(|(p, v, _)| format!("{} at {v:.2} × documented", p.replace('_', " "))))
+                    .collect::<Vec<_>>()
+                    .join(" and ")
             };
             syn.push(format!(
                 "{} noisy releases of one brake, generated with a hidden {truth}",

@@ -223,14 +223,14 @@ pub fn html_section(out: &AuditOutcome) -> Result<String> {
         "<section class=\"audit\"><h2>Model-discrepancy audit</h2><p>Data: <code>{}</code></p>",
         esc(&out.source)
     );
-    let cause = if let Some((p, v, u)) = out.cause_parameter {
-        format!("<b>{p}</b> = {v:.3} ± {u:.3} {}", crate::audit::PARAMETER_UNIT)
-    } else if out.cause_effects.is_empty() {
+    let terms = out.chosen.terms_text();
+    let cause = if terms.is_empty() {
         format!("<b>{}</b>", esc(&out.cause))
     } else {
-        out.cause_effects
+        // "name = v ± u unit": the name in bold.
+        terms
             .iter()
-            .map(|(ef, v, u)| format!("<b>{ef}</b> = {v:.4} ± {u:.4} {}", ef.unit()))
+            .map(|t| t.split_once(" = ").map_or(t.clone(), |(n, rest)| format!("<b>{n}</b> = {rest}")))
             .collect::<Vec<_>>()
             .join(" and ")
     };
@@ -297,10 +297,8 @@ pub fn html_section(out: &AuditOutcome) -> Result<String> {
     );
     for c in &out.ranking {
         let m = c
-            .effects
-            .iter()
-            .map(|(ef, v, u)| format!("{ef} = {v:.4} ± {u:.4} {}", ef.unit()))
-            .chain(c.parameter.map(|(p, v, u)| format!("{p} = {v:.3} ± {u:.3} {}", crate::audit::PARAMETER_UNIT)))
+            .terms_text()
+            .into_iter()
             .chain(c.flag.iter().map(|f| format!("(not credible: {f})")))
             .collect::<Vec<_>>()
             .join(", ");

@@ -409,6 +409,36 @@ fn a_weak_spring_a_blocked_orifice_and_releases_that_differ_are_told_honestly() 
     assert!(!weak_again.verdict_text().contains("differ from each other"), "{}", weak_again.verdict_text());
 }
 
+/// A mechanism next to a part beyond tolerance (issue 17: "pairs of a mechanism and a part
+/// beyond tolerance are not searched"). An independent plant's valve 0.3 s late on a brake with
+/// a spring at 0.8 × its rate had been named a transport delay plus a progressive spring of
+/// negative ratio, "part"; a laminar leak in a cylinder with 1.3 × its dead volume a discharge
+/// coefficient, "part". Both parts and both mechanisms are now named, with their magnitudes.
+#[test]
+fn a_mechanism_next_to_a_part_beyond_tolerance_is_named_with_it() {
+    let options = AuditOptions::default();
+    let nominal = pbm::TwinParams::nominal();
+    let mut late = pbm::TwinParams { spring_rate_n_per_m: 0.8 * nominal.spring_rate_n_per_m, ..nominal };
+    late.ext[Mechanism::TransportDelay] = 0.3;
+    let out = audit(&plant_set(8, 51, |_| late), options).expect("audit");
+    eprintln!("late valve, weak spring: {}", out.verdict_text());
+    assert_eq!(out.cause, "transport_delay+spring_rate", "{}", out.verdict_text());
+    let (_, scale, _) = out.cause_parameter.expect("a part beyond tolerance");
+    assert!((scale - 0.8).abs() < 0.03, "{scale}");
+    assert!((out.magnitude() - 0.3).abs() < 0.03, "{}", out.magnitude());
+    assert!(out.verdict_text().starts_with("transport_delay with spring_rate = 0.8"), "{}", out.verdict_text());
+    let json = out.to_json();
+    assert_eq!(json["causes"].as_array().map(Vec::len), Some(2), "{json}");
+
+    let mut leaky = pbm::TwinParams { dead_volume_m3: 1.3 * nominal.dead_volume_m3, ..nominal };
+    leaky.ext[Mechanism::LaminarLeak] = 0.3;
+    let out = audit(&plant_set(8, 52, |_| leaky), options).expect("audit");
+    eprintln!("leak, large dead volume: {}", out.verdict_text());
+    assert_eq!(out.cause, "laminar_leak+dead_volume", "{}", out.verdict_text());
+    let (_, scale, _) = out.cause_parameter.expect("a part beyond tolerance");
+    assert!((scale - 1.3).abs() < 0.05, "{scale}");
+}
+
 /// Issue 17, item 6: an open-world sweep (`pbm_lab::open_world`), one case of each effect outside
 /// the library (a hunting regulator, a leak above a pressure, a supply cut, an icing orifice, a
 /// rough bore patch, a tearing seal, a transducer bow), some mixed with a library mechanism: the

@@ -116,6 +116,60 @@ fn metadata_keys_match_exactly_and_unknown_keys_are_warnings() {
     assert!(unknown.is_empty(), "{unknown:?}");
     // A documented key with no number is an error.
     assert!(config_from_meta(&meta(&[("supply_bar_g", "high")])).is_err());
+    // A number in another unit is an error, not read as the key's (a sixth independent tester's
+    // `0.6 MPa` had been audited as a 0.6 bar g supply); the key's own unit is accepted.
+    for bad in ["0.6 MPa", "6.0 psi", "7.7 bar abs", "7.7bar"] {
+        let e = config_from_meta(&meta(&[("supply_bar_g", bad)])).expect_err(bad);
+        assert!(format!("{e:#}").contains("supply_bar_g"), "{e:#}");
+    }
+    assert_eq!(config_from_meta(&meta(&[("supply_bar_g", "7.2 bar g")])).unwrap().0.supply.0, 7.2);
+    assert!((config_from_meta(&meta(&[("orifice_mm", "1.1 mm")])).unwrap().0.orifice.mm() - 1.1).abs() < 1e-12);
+    assert!(config_from_meta(&meta(&[("orifice_mm", "1.1 in")])).is_err());
+    // In the twin's range but no release: refused.
+    for (key, value) in [("supply_bar_g", "0"), ("supply_bar_g", "0.5"), ("orifice_mm", "0")] {
+        let e = config_from_meta(&meta(&[(key, value)])).expect_err(value);
+        assert!(format!("{e:#}").contains("no release") || format!("{e:#}").contains("cannot release"), "{e:#}");
+    }
+}
+
+/// Copies of one release (a file copied under other names, or listed twice in the manifest)
+/// are audited once, each copy skipped with the reason; pressures written rounded to 0.05 bar
+/// are refused (the noise cannot be estimated under the rounding). A sixth independent tester's
+/// eight copies of a healthy release were `unexplained` at 3.1×, and 0.05–0.1 bar steps gave a
+/// noise of 0.0000 bar and `unexplained` at 55–143×.
+#[test]
+fn copies_of_a_release_and_coarsely_rounded_pressures_are_not_audited_as_measurements() {
+    let tmp = tempfile::tempdir().unwrap();
+    let gen = generated(tmp.path(), 3, 17, Extensions::NONE);
+    let (data, skipped) = load_dataset(&gen).unwrap();
+    let releases: usize = data.groups.iter().map(|g| g.traces.len()).sum();
+    assert!(skipped.is_empty(), "{skipped}");
+    // The manifest lists its first trace twice more.
+    let manifest = std::fs::read_to_string(gen.join("manifest.csv")).unwrap();
+    let first = manifest.lines().nth(1).unwrap().to_owned();
+    std::fs::write(gen.join("manifest.csv"), format!("{manifest}{first}\n{first}\n")).unwrap();
+    let (data, skipped) = load_dataset(&gen).unwrap();
+    assert_eq!(data.groups.iter().map(|g| g.traces.len()).sum::<usize>(), releases);
+    assert_eq!(skipped.len(), 2, "{skipped}");
+    assert!(format!("{skipped}").contains("an exact copy of"), "{skipped}");
+
+    // A release written in p_bar rounded to 0.05 bar, and the same to 0.01 bar (audited).
+    let dir = tempfile::tempdir().unwrap();
+    let file = first.split(',').next().unwrap();
+    let trace = pbm_io::trace::read_trace(&gen.join(file)).unwrap();
+    let rounded = |step: f64| {
+        let mut s = "t_s,p_bar\n".to_owned();
+        for (t, p) in trace.t_s.iter().zip(trace.pressures_bar()) {
+            let _ = writeln!(s, "{t:.2},{:.4}", (p / step).round() * step);
+        }
+        s
+    };
+    let set = data_set(dir.path(), &[("coarse.csv", rounded(0.05))]);
+    let msg = no_usable_release(&set);
+    assert!(msg.contains("steps of 0.050 bar"), "{msg}");
+    let fine = tempfile::tempdir().unwrap();
+    let set = data_set(fine.path(), &[("fine.csv", rounded(0.01))]);
+    assert!(load_dataset(&set).is_ok());
 }
 
 /// Healthy releases with one open-circuit channel, one `# sensor_supply_v: 5` and one
