@@ -183,15 +183,15 @@ fn mechanisms(out: &Path, compiled: &[pbm::mechanism::Mechanism]) {
     std::fs::write(out.join("mechanisms.rs"), text).expect("write mechanisms.rs");
 }
 
-/// The locomotive number of a trace's `# locomotive:` metadata line (0 without one), as
-/// `host-sim replay` reads it (`pbm::can::codec::locomotive_number`).
-fn trace_locomotive(path: &Path) -> u8 {
+/// The fleet number of a trace's `# locomotive:` metadata line (0 without one), as
+/// `host-sim replay` reads it (`pbm::can::codec::fleet_number`).
+fn trace_locomotive(path: &Path) -> u16 {
     let text = std::fs::read_to_string(path).unwrap_or_default();
     text.lines()
         .filter_map(|l| l.trim().strip_prefix('#'))
         .filter_map(|l| l.split_once(':'))
         .find(|(k, _)| k.trim() == "locomotive")
-        .map_or(0, |(_, v)| pbm::can::codec::locomotive_number(v))
+        .map_or(0, |(_, v)| pbm::can::codec::fleet_number(v))
 }
 
 fn main() {
@@ -247,6 +247,6 @@ fn main() {
     writeln!(s, "pub static ADC_TRACE: [u16; {}] = {samples:?};", samples.len()).unwrap();
     writeln!(s, "/// The locomotive number of the trace's `# locomotive:` line (0 without one), which the").unwrap();
     writeln!(s, "/// CAN frames carry, as `host-sim replay` takes it from the same line.").unwrap();
-    writeln!(s, "pub const ADC_TRACE_LOCOMOTIVE: u8 = {locomotive};").unwrap();
+    writeln!(s, "pub const ADC_TRACE_LOCOMOTIVE: u16 = {locomotive};").unwrap();
     std::fs::write(out.join("adc_trace.rs"), s).expect("write adc_trace.rs");
 }

@@ -275,6 +275,15 @@ fn known_answer_vectors() {
     payload[0] = reference_crc(&crc_input);
     assert_eq!(x.data(), payload);
     assert_eq!(&x.data()[1..], [0xA5, 0x59, 0x00, 0x23, 0x43, 0x65, 0x87]);
+    // Layout 3.1: fleet number 3141 = 0xC45, its low 6 bits (5) at 20, bits 6..11 (49) at 26..31.
+    let x = encode_session(SessionLink { counter: 0x9A5, locomotive: 3141, release_count: 0x8765_4323 });
+    let xb = (0x9A5u64 << 8) | (5 << 20) | (49 << 26) | (0x8765_4323u64 << 32);
+    let mut payload = xb.to_le_bytes();
+    let crc_input: Vec<u8> = [0x52, 0x3F].iter().chain(&payload[1..]).copied().collect();
+    payload[0] = reference_crc(&crc_input);
+    assert_eq!(x.data(), payload);
+    let (report, _) = pbm::can::codec::decode_frame(&x, Identity::default()).expect("decodes");
+    assert_eq!(report, Report::Session(SessionLink { counter: 0x9A5, locomotive: 3141, release_count: 0x8765_4323 }));
     // The core's CRC equals the crate's on random inputs.
     let mut x = 0x1234_5678_9ABC_DEF0u64;
     for len in 0..64usize {

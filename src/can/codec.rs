@@ -38,12 +38,19 @@ impl Identity {
 /// The locomotive number of a locomotive's name as data sets write it (`loco-05` → 5): the
 /// decimal digits at its end, modulo 64 (the width of [`l::LOCOMOTIVE`]); 0 without digits.
 pub fn locomotive_number(name: &str) -> u8 {
+    (fleet_number(name) & 0x3F) as u8
+}
+
+/// The fleet number the session frame carries for a locomotive named `name`: the decimal
+/// digits at its end, modulo 4096 (12 bits; `loco-71` → 71); 0 without digits. Its low 6 bits
+/// are [`locomotive_number`].
+pub fn fleet_number(name: &str) -> u16 {
     let (mut v, mut place) = (0u32, 1u32);
     for d in name.trim().bytes().rev().take_while(u8::is_ascii_digit) {
-        v = (v + u32::from(d - b'0') * place) % 64;
-        place = (place * 10) % 64;
+        v = (v + u32::from(d - b'0') * place) % 4096;
+        place = (place * 10) % 4096;
     }
-    v as u8
+    v as u16
 }
 
 /// CRC-8 SAE J1850 of one nibble shifted through the register (`T[n]` = CRC step of `n << 4`):
@@ -132,8 +139,8 @@ pub enum FrameError {
     /// A status frame of another locomotive (another monitor on the bus, or frames of another
     /// recording) while one is being followed.
     ForeignSender {
-        /// The locomotive number it carries.
-        locomotive: u8,
+        /// The locomotive number it carries (a session frame's: the 12-bit fleet number).
+        locomotive: u16,
     },
     /// A release number that went backwards (an earlier release's frame).
     WrongRelease {
@@ -200,7 +207,8 @@ impl core::fmt::Display for FrameError {
             Self::RateExceeded { gap_ms } => write!(f, "rate exceeded: {gap_ms} ms after the previous frame"),
             Self::ForeignSender { locomotive } => write!(f, "foreign sender: locomotive {locomotive}"),
             Self::WrongRelease { expected, got } => write!(f, "release {got} went backwards (expected {expected})"),
-            Self::WrongReleaseCount { known, got } if got < known => {
+            // Serial-number order (the count wraps at 2³²): behind when more than 2³¹ ahead.
+            Self::WrongReleaseCount { known, got } if got.wrapping_sub(known) >= 1 << 31 => {
                 write!(f, "release count {got} is behind {known}, seen before from this locomotive (an old recording)")
             }
             Self::WrongReleaseCount { known, got } => {
@@ -365,14 +373,20 @@ pub fn encode_status(s: &StatusReport, link: StatusLink) -> CanFrame {
 pub struct SessionLink {
     /// Heartbeat counter of the status frame sent in the same tick (12 bits used).
     pub counter: u16,
-    /// The locomotive (6 bits used).
-    pub locomotive: u8,
+    /// The locomotive's fleet number (12 bits used: the low 6 are the status frame's
+    /// locomotive).
+    pub locomotive: u16,
     /// Release commands and power-ups since the controller was new (non-volatile, never wraps
     /// in service).
     pub release_count: u32,
 }
 
 impl SessionLink {
+    /// The locomotive as the status frames and fault reports carry it (6 bits).
+    pub const fn locomotive_slot(&self) -> u8 {
+        (self.locomotive & 0x3F) as u8
+    }
+
     /// The release number (6 bits) the status frames carry for this count.
     pub const fn release(&self) -> u8 {
         (self.release_count & 0x3F) as u8
@@ -384,6 +398,7 @@ pub fn encode_session(link: SessionLink) -> CanFrame {
     let mut bits = 0u64;
     l::SESSION_STATUS_COUNTER.put(&mut bits, u64::from(link.counter & 0xFFF));
     l::SESSION_LOCOMOTIVE.put(&mut bits, u64::from(link.locomotive & 0x3F));
+    l::SESSION_LOCOMOTIVE_HIGH.put(&mut bits, u64::from((link.locomotive >> 6) & 0x3F));
     l::RELEASE_COUNT.put(&mut bits, u64::from(link.release_count));
     seal(&l::SESSION, None, bits)
 }
@@ -392,7 +407,7 @@ pub fn encode_session(link: SessionLink) -> CanFrame {
 pub fn session_link(bits: u64) -> SessionLink {
     SessionLink {
         counter: l::SESSION_STATUS_COUNTER.get(bits) as u16,
-        locomotive: l::SESSION_LOCOMOTIVE.get(bits) as u8,
+        locomotive: (l::SESSION_LOCOMOTIVE.get(bits) | l::SESSION_LOCOMOTIVE_HIGH.get(bits) << 6) as u16,
         release_count: l::RELEASE_COUNT.get(bits) as u32,
     }
 }

@@ -191,6 +191,13 @@ const COUNTER_MOD: u16 = 4096;
 /// frames show the new phase (the first of them is flagged: one delayed frame looks the same).
 /// A larger step is re-locked onto after [`RELOCK_RUN`] heartbeats at the new phase.
 pub const MAX_LATENCY_STEP_US: u64 = 250_000;
+
+/// How long after its status frame a session frame may come: until the next status frame is
+/// due. It is sent last in its tick with the lowest priority, so bus load delays it most; at
+/// 55 ms it had been flagged `untimely` and the count put in doubt for 10 s (eighth black-box
+/// attacker, F3). Later than this it reads as lost ([`Reception::lost_session`]); a copy within
+/// the period is refused (`rate_exceeded`).
+pub const SESSION_LATE_MAX_US: u64 = STATUS_PERIOD_US - TOLERANCE_US;
 /// How many unattributed fault reports ([`Reception::unattributed`]) the receiver holds until a
 /// heartbeat attributes them: the sender sends at most 11 in a heartbeat period. Beyond it they
 /// are flagged.
@@ -713,6 +720,10 @@ struct Knowledge {
     /// recording, and a session of that locomotive is current only once its own session frame
     /// gave its count ([`Reception::release_unconfirmed`]).
     newest_count: [Option<(u32, u64)>; 64],
+    /// The fleet number (12 bits) a locomotive's session frames carried, once a session of it
+    /// was confirmed: a session frame with another number is another unit whose number is the
+    /// same modulo 64 (`foreign_sender`).
+    fleet: [Option<u16>; 64],
     /// A status frame after a silence refused only because its 6-bit release number did not
     /// look newer than the locomotive's newest (equal, or 32–63 on, which reads as behind), and
     /// when it came: a restart after 64 or more releases the receiver did not hear looks so.
@@ -748,7 +759,17 @@ fn ms(us: i64) -> i32 {
 /// by no more than the time since allows: the power-up and one release a second (as the release
 /// rules assume; a corruption far ahead is refused and locks nothing out).
 fn count_within_time(known: u32, heard: u64, got: u32, now: u64) -> bool {
-    got >= known && u64::from(got - known) <= 2 + now.saturating_sub(heard) / STATUS_PERIOD_US
+    count_ahead(known, got).is_some_and(|d| u64::from(d) <= 2 + now.saturating_sub(heard) / STATUS_PERIOD_US)
+}
+
+/// How far count `got` is ahead of `known`, in serial-number arithmetic (RFC 1982): the 32-bit
+/// count wraps, and a controller whose non-volatile count started at an erased 0xFFFF_FFFF
+/// wraps at its second power-up (eighth black-box attacker, F1: every later session had been
+/// refused as an old recording). `None` when `got` is behind (more than 2³¹ ahead reads as
+/// behind).
+fn count_ahead(known: u32, got: u32) -> Option<u32> {
+    let d = got.wrapping_sub(known);
+    (d < 1 << 31).then_some(d)
 }
 
 /// The full count of release number `release`, from the count of release number `base`
@@ -793,6 +814,7 @@ impl Decoder {
                 relock_unconfirmed_until: 0,
                 newest_us: 0,
                 newest_count: [None; 64],
+                fleet: [None; 64],
                 restart_candidate: None,
             },
             before_jump: None,
@@ -970,7 +992,7 @@ impl Decoder {
                         if let Some(o) = self.st.session.as_mut().filter(|o| o.tentative) {
                             o.rival = Some((loco, link.counter, now));
                         }
-                        return Err(FrameError::ForeignSender { locomotive: loco });
+                        return Err(FrameError::ForeignSender { locomotive: u16::from(loco) });
                     }
                     rec.superseded = true;
                     self.open(now, &link, true, rec);
@@ -1390,7 +1412,7 @@ impl Decoder {
     fn note_count(&mut self, locomotive: u8, count: u32, now: u64) {
         let i = usize::from(locomotive & 0x3F);
         if let Some(slot) = self.st.newest_count.get_mut(i) {
-            if slot.is_none_or(|(newest, _)| count >= newest) {
+            if slot.is_none_or(|(newest, _)| count_ahead(newest, count).is_some()) {
                 *slot = Some((count, now));
                 // The count is the authority on which release is the newest (the 6-bit number
                 // reads 32–63 on as behind).
@@ -1406,6 +1428,12 @@ impl Decoder {
     /// ([`Reception::release_unconfirmed`]).
     fn count_unconfirmed(&self, s: &Session) -> bool {
         s.count_base.is_none() && self.newest_count(s.identity.locomotive).is_some()
+    }
+
+    /// Whether session frame `link` comes from the unit whose session frames this receiver
+    /// confirmed for its locomotive (the same 12-bit fleet number), or none was confirmed yet.
+    fn same_unit(&self, link: &super::codec::SessionLink) -> bool {
+        self.st.fleet.get(usize::from(link.locomotive_slot())).copied().flatten().is_none_or(|f| f == link.locomotive)
     }
 
     /// The newest release count seen from the locomotive, and when it was last heard.
@@ -1448,7 +1476,7 @@ impl Decoder {
         let Some(mut s) = self.st.session else {
             return Err(FrameError::NoHeartbeat);
         };
-        if link.locomotive != s.identity.locomotive {
+        if link.locomotive_slot() != s.identity.locomotive || !self.same_unit(&link) {
             return Err(FrameError::ForeignSender { locomotive: link.locomotive });
         }
         // Right after the last accepted heartbeat, with its counter; or, when that heartbeat was
@@ -1470,7 +1498,7 @@ impl Decoder {
         let by_clock = diff(now, 0).saturating_sub(due);
         let on_clock = (-(TOLERANCE_US as i64)..=(TOLERANCE_US + drift(span)) as i64).contains(&by_clock);
         let heard_at = flagged_at.or((d == 0).then_some(s.at_us));
-        let after_heartbeat = heard_at.is_some_and(|at| (0..=TOLERANCE_US as i64).contains(&diff(now, at)));
+        let after_heartbeat = heard_at.is_some_and(|at| (0..=SESSION_LATE_MAX_US as i64).contains(&diff(now, at)));
         if !on_clock && !after_heartbeat {
             return Err(FrameError::Untimely { off_ms: ms(heard_at.map_or(by_clock, |at| diff(now, at))) });
         }
@@ -1493,11 +1521,11 @@ impl Decoder {
                 }
                 return Err(FrameError::WrongReleaseCount { known, got });
             }
-        } else if let Some((known, heard)) = self.newest_count(link.locomotive) {
+        } else if let Some((known, heard)) = self.newest_count(link.locomotive_slot()) {
             if !count_within_time(known, heard, got, now) {
                 return Err(FrameError::WrongReleaseCount { known, got });
             }
-            if got > known {
+            if count_ahead(known, got).is_some_and(|d| d > 0) {
                 // Newer than any count seen: a genuine restart, however far its release number
                 // jumped.
                 s.restart_jump = 0;
@@ -1507,6 +1535,9 @@ impl Decoder {
         self.st.session = Some(s);
         if !s.tentative {
             self.note_count(s.identity.locomotive, got, now);
+            if let Some(f) = self.st.fleet.get_mut(usize::from(link.locomotive_slot())) {
+                *f = Some(link.locomotive);
+            }
         }
         rec.identity = Some(s.identity);
         Ok(report)
@@ -1529,11 +1560,16 @@ impl Decoder {
         rec: &mut Reception,
     ) -> Result<(), FrameError> {
         let loco = status.identity.locomotive & 0x3F;
-        if link.locomotive != loco || link.counter != status.counter || link.release() != status.identity.release & 0x3F
+        if link.locomotive_slot() != loco
+            || link.counter != status.counter
+            || link.release() != status.identity.release & 0x3F
         {
             return Err(FrameError::NoHeartbeat);
         }
-        if !(0..=TOLERANCE_US as i64).contains(&diff(now, at)) {
+        if !self.same_unit(link) {
+            return Err(FrameError::ForeignSender { locomotive: link.locomotive });
+        }
+        if !(0..=SESSION_LATE_MAX_US as i64).contains(&diff(now, at)) {
             return Err(FrameError::Untimely { off_ms: ms(diff(now, at)) });
         }
         let Some((known, heard)) = self.newest_count(loco) else {

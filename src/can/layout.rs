@@ -270,13 +270,21 @@ pub const SESSION_CRC: Signal = sig("SessionCrc", 0, 8, 1.0, 255.0, "");
 /// The heartbeat counter of the status frame this session frame follows (sent in the same
 /// transmit tick, right after it): what ties the release count to one moment of one session.
 pub const SESSION_STATUS_COUNTER: Signal = sig("SessionStatusCounter", 8, 12, 1.0, 4095.0, "");
-/// The locomotive, as in [`LOCOMOTIVE`].
+/// The locomotive, as in [`LOCOMOTIVE`]: the low 6 bits of its fleet number.
 pub const SESSION_LOCOMOTIVE: Signal = sig("SessionLocomotive", 20, 6, 1.0, 63.0, "");
+/// Bits 6..12 of the locomotive's fleet number (layout 3.1, in bits that layout 3.0 reserved
+/// as 0): with [`SESSION_LOCOMOTIVE`], 12 bits (0–4095). The status frames and fault reports
+/// carry 6; a unit of another locomotive whose number is the same modulo 64 (a spare or swapped
+/// controller, or its recording) is told apart by its session frames (eighth black-box attacker,
+/// F2: such a recording played after the monitor stopped had been taken as its restart).
+pub const SESSION_LOCOMOTIVE_HIGH: Signal = sig("SessionLocomotiveHigh", 26, 6, 1.0, 63.0, "");
 /// Release count: release commands and power-ups since the controller was new, the counter it
 /// keeps in non-volatile memory, in full (32 bits; [`RELEASE_NUMBER`] is its low 6 bits). The
-/// 6-bit release number repeats every 64 releases; this count never does (at one release a
-/// second it would take 136 years), so a receiver that saw it once tells a restart of the
-/// monitor from a recording of an old session of the same locomotive. Bits 26..32 are reserved.
+/// 6-bit release number repeats every 64 releases; this count repeats only after 2³² (136
+/// years at one release a second from 0; a receiver compares counts in serial-number order, so
+/// a count that started at an erased 0xFFFF_FFFF is followed across its wrap), so a receiver
+/// that saw it once tells a restart of the monitor from a recording of an old session of the
+/// same locomotive.
 pub const RELEASE_COUNT: Signal = sig("ReleaseCount", 32, 32, 1.0, 4_294_967_295.0, "");
 
 /// Status frames between two periodic session frames (10 s): a display that joins late
@@ -293,7 +301,7 @@ pub const SESSION: Message = Message {
     dlc: 8,
     data_id: 0x3F52,
     cycle_ms: 10_000,
-    signals: &[SESSION_CRC, SESSION_STATUS_COUNTER, SESSION_LOCOMOTIVE, RELEASE_COUNT],
+    signals: &[SESSION_CRC, SESSION_STATUS_COUNTER, SESSION_LOCOMOTIVE, SESSION_LOCOMOTIVE_HIGH, RELEASE_COUNT],
 };
 
 /// Every message the monitor transmits. Nothing else is ever sent.
@@ -318,7 +326,7 @@ mod tests {
         }
         assert_eq!(FAULT_REPORT.reserved_mask(), 0);
         assert_eq!(STATUS.reserved_mask(), 0);
-        assert_eq!(SESSION.reserved_mask(), 0x3F << 26);
+        assert_eq!(SESSION.reserved_mask(), 0, "layout 3.1 uses the bits 3.0 reserved");
     }
 
     #[test]

@@ -71,8 +71,9 @@ impl Outbox {
 /// controller).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
 pub struct PowerUp {
-    /// The locomotive's number (6 bits are sent).
-    pub locomotive: u8,
+    /// The locomotive's fleet number (12 bits are sent in the session frame, the low 6 in every
+    /// frame).
+    pub locomotive: u16,
     /// Release commands and power-ups before this power-up.
     pub release_count: u32,
 }
@@ -86,6 +87,9 @@ pub struct CanReporter {
     status_counter: u16,
     fault_counter: u8,
     identity: Identity,
+    /// The locomotive's fleet number (12 bits) the session frame carries; `identity.locomotive`
+    /// is its low 6 bits.
+    fleet_number: u16,
     /// Release commands and power-ups since the controller was new ([`Self::set_identity`]);
     /// `identity.release` is its low 6 bits.
     release_count: u32,
@@ -118,6 +122,7 @@ impl CanReporter {
             status_counter: 0,
             fault_counter: 0,
             identity: Identity { locomotive: 0, release: 0 },
+            fleet_number: 0,
             release_count: 0,
             session_due: true,
             last_fault_key: None,
@@ -133,7 +138,9 @@ impl CanReporter {
     pub fn set_identity(&mut self, power_up: PowerUp) {
         self.release_count = power_up.release_count.wrapping_add(1);
         self.session_due = true;
-        self.identity = Identity { locomotive: power_up.locomotive, release: self.release_count as u8 }.masked();
+        self.fleet_number = power_up.locomotive & 0xFFF;
+        self.identity =
+            Identity { locomotive: (power_up.locomotive & 0x3F) as u8, release: self.release_count as u8 }.masked();
     }
 
     /// The release count now (what the controller keeps in non-volatile memory for the next
@@ -167,7 +174,7 @@ impl CanReporter {
                 StatusLink { counter: self.status_counter, identity: self.identity, fault_count: self.fault_counter };
             out.push(encode_status(status, link));
             if self.session_due || self.status_counter % SESSION_EVERY_STATUS_FRAMES == 0 {
-                let (counter, locomotive) = (self.status_counter, self.identity.locomotive);
+                let (counter, locomotive) = (self.status_counter, self.fleet_number);
                 out.push(encode_session(SessionLink { counter, locomotive, release_count: self.release_count }));
                 self.session_due = false;
             }

@@ -29,7 +29,7 @@ CRC_SIGNAL = {"BPM_FaultReport": "FaultCrc", "BPM_Status": "StatusCrc", "BPM_Ses
 COUNTER_SIGNAL = {"BPM_FaultReport": "FaultCounter", "BPM_Status": "StatusCounter",
                   "BPM_Session": "SessionStatusCounter"}
 # host-sim's CSV column of a signal, where the names differ.
-COLUMN = {"SessionLocomotive": "Locomotive"}
+COLUMN = {"SessionLocomotive": "Locomotive", "SessionLocomotiveHigh": "Locomotive"}
 
 
 def crc8_sae_j1850(data: bytes) -> int:
@@ -123,6 +123,11 @@ def main() -> int:
             if sig.name in (CRC_SIGNAL[msg.name], COUNTER_SIGNAL[msg.name]):
                 continue
             ours = row[COLUMN.get(sig.name, sig.name)]
+            # host-sim's session row gives the 12-bit fleet number; the DBC splits it in two.
+            if sig.name == "SessionLocomotive":
+                ours = int(ours) % 64
+            elif sig.name == "SessionLocomotiveHigh":
+                ours = int(row["Locomotive"]) // 64
             theirs = phys[sig.name]
             if sig.choices:
                 label = theirs.name if hasattr(theirs, "name") else str(theirs)

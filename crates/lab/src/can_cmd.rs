@@ -932,7 +932,8 @@ const DEMO_IDLE_S: f64 = 3.0;
 /// During a sensor fault the verdict is `cannot_diagnose (sensor_…)`. Returns frames sent.
 pub fn write_demo_log<S: FrameSink>(sink: S) -> Result<(u64, S)> {
     let mut monitor = Monitor::new(&TwinParams::nominal()).map_err(|e| anyhow::anyhow!("nominal twin: {e}"))?;
-    let mut rec = CanRecorder::with_identity(sink, PowerUp { locomotive: DEMO_LOCOMOTIVE, release_count: 0 });
+    let mut rec =
+        CanRecorder::with_identity(sink, PowerUp { locomotive: u16::from(DEMO_LOCOMOTIVE), release_count: 0 });
     let mut sample: u64 = 0;
     let mut frames = 0u64;
     // Transducer noise (SPEC §5, σ = 0.01 bar) from a fixed seed: a noise-free reading would
@@ -1023,8 +1024,8 @@ pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
                 if m % 3 == 0 {
                     let high = [0u32, 1, 1000, 0x3FF_FFFF][usize::from(m / 3) % 4];
                     let release_count = (high << 6) | u32::from(identity.release);
-                    let session =
-                        SessionLink { counter: status_counter, locomotive: identity.locomotive, release_count };
+                    let locomotive = u16::from(identity.locomotive) | (u16::from(m) % 64) << 6;
+                    let session = SessionLink { counter: status_counter, locomotive, release_count };
                     sink.send(LOG_EPOCH_US + n * 10_000, &encode_session(session))?;
                     n += 1;
                 }

@@ -407,11 +407,11 @@ fn output_path(dir: &Path, name: &str, ext: &str) -> PathBuf {
     dir.join(name).with_extension(ext)
 }
 
-/// The identity a replayed release's CAN frames carry: the locomotive number of `locomotive`
-/// ([`pbm::can::codec::locomotive_number`]) and the release count of a monitor that has seen
+/// The identity a replayed release's CAN frames carry: the fleet number of `locomotive`
+/// ([`pbm::can::codec::fleet_number`], whose low 6 bits every frame carries) and the release count of a monitor that has seen
 /// `earlier_releases` recorded releases before it (what the firmware sends).
 pub fn release_identity(locomotive: &str, earlier_releases: u32) -> PowerUp {
-    PowerUp { locomotive: pbm::can::codec::locomotive_number(locomotive), release_count: earlier_releases }
+    PowerUp { locomotive: pbm::can::codec::fleet_number(locomotive), release_count: earlier_releases }
 }
 
 /// Replays one item and writes its outputs (results CSV, plot); a bad input removes what was
@@ -520,12 +520,12 @@ fn replay_release(
 /// data set's or archive's order) is its release k, so every report in a replay's CAN log
 /// belongs to one locomotive and one release.
 #[derive(Debug, Default)]
-struct ReleaseNumbering(std::collections::HashMap<u8, u32>);
+struct ReleaseNumbering(std::collections::HashMap<u16, u32>);
 
 impl ReleaseNumbering {
     /// The releases the locomotive's monitor has seen before this one.
     fn next(&mut self, locomotive: Option<&str>) -> u32 {
-        let loco = locomotive.map_or(0, pbm::can::codec::locomotive_number);
+        let loco = locomotive.map_or(0, pbm::can::codec::fleet_number);
         let n = self.0.entry(loco).or_insert(0);
         let before = *n;
         *n = n.wrapping_add(1);

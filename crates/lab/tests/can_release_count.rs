@@ -23,7 +23,7 @@ struct Timed {
     injected: bool,
 }
 
-const LOCO: u8 = 1;
+const LOCO: u16 = 1;
 /// Seconds of one session (one release, the valve open throughout).
 const SESSION_S: u64 = 12;
 /// Seconds between two sessions (a power cycle).
@@ -38,8 +38,13 @@ fn session(k: usize, start_us: u64) -> Vec<Timed> {
 
 /// [`session`] lasting `seconds`.
 fn session_of(k: usize, start_us: u64, seconds: u64) -> Vec<Timed> {
+    session_of_unit(LOCO, k, start_us, seconds)
+}
+
+/// [`session_of`] of the locomotive with fleet number `fleet`.
+fn session_of_unit(fleet: u16, k: usize, start_us: u64, seconds: u64) -> Vec<Timed> {
     let mut rep = CanReporter::new();
-    rep.set_identity(PowerUp { locomotive: LOCO, release_count: k as u32 });
+    rep.set_identity(PowerUp { locomotive: fleet, release_count: k as u32 });
     rep.new_release();
     let status =
         StatusReport { sensor_fault: None, estimator: EstimatorState::Settled, pressure_mbar: 7_000, version: (0, 1) };
@@ -351,5 +356,64 @@ fn a_monitor_restarted_after_many_unheard_releases_is_current() {
         let what = format!("{unheard} sessions unheard");
         assert!(seen.flagged_genuine.len() <= 1, "{what}: {:?}", seen.flagged_genuine);
         assert_eq!(seen.current_genuine, seen.reports_genuine, "{what}: {seen:?}");
+    }
+}
+
+/// The 32-bit count wraps across power-ups (a controller whose non-volatile count started at an
+/// erased 0xFFFF_FFFF wraps at its second power-up; eighth black-box attacker, F1): counts are
+/// compared in serial-number order, so every session after the wrap is current. Before, every
+/// later session frame was flagged as an old recording and no later report was current.
+#[test]
+fn a_count_that_wraps_at_two_to_the_32_across_power_ups_decodes_cleanly() {
+    let first = 0xFFFF_FFFDu64;
+    let stream: Vec<Timed> = (0..6).flat_map(|j| session((first + j) as usize, start_of(j as usize))).collect();
+    assert!(stream.iter().any(|e| e.session as u64 > u64::from(u32::MAX)), "the count must cross 2³²");
+    let seen = decode(&stream);
+    assert!(seen.flagged_genuine.is_empty(), "{:?}", seen.flagged_genuine);
+    assert_eq!(seen.current_genuine, seen.reports_genuine, "{seen:?}");
+    assert!(seen.reports_genuine > 6 * 9);
+}
+
+/// A session frame alone delayed behind its status frame by bus load (it is sent last in its
+/// tick, with the lowest priority), by 55 ms to 0.9 s (eighth black-box attacker, F3: from 55 ms
+/// on it was flagged `untimely` and the session's reports were not current for 10 s): accepted,
+/// nothing flagged, every report current.
+#[test]
+fn a_session_frame_delayed_by_bus_load_is_accepted() {
+    for delay_ms in [55u64, 120, 400, 900] {
+        let mut stream = sessions(3);
+        for e in stream.iter_mut().filter(|e| is_kind(&e.f, MessageKind::Session)) {
+            e.t += delay_ms * 1000;
+        }
+        stream.sort_by_key(|e| e.t);
+        let seen = decode(&stream);
+        assert!(seen.flagged_genuine.is_empty(), "{delay_ms} ms: {:?}", seen.flagged_genuine);
+        assert_eq!(seen.current_genuine, seen.reports_genuine, "{delay_ms} ms: {seen:?}");
+    }
+}
+
+/// Another locomotive's unit whose fleet number is the same modulo 64 (65 for 1: a spare or
+/// swapped controller, or its recording), played from its power-up after the monitor stopped,
+/// with a count above the monitor's (eighth black-box attacker, F2: every report of it was shown
+/// current, `--strict` passing). Its session frames carry the other 12-bit number: flagged
+/// `foreign_sender`, none of its reports current; the monitor's own restart after it is current.
+#[test]
+fn another_unit_with_the_same_locomotive_number_modulo_64_is_never_current() {
+    for (gap_s, ahead) in [(4u64, 1usize), (30, 3), (60, 5)] {
+        let mut stream = sessions(3);
+        let t = start_of(3) - GAP_S * 1_000_000 + gap_s * 1_000_000;
+        stream.extend(
+            session_of_unit(LOCO + 64, 2 + ahead, t, SESSION_S).into_iter().map(|e| Timed { injected: true, ..e }),
+        );
+        stream.extend(session(2 + ahead + 1, t + (SESSION_S + GAP_S) * 1_000_000));
+        let seen = decode(&stream);
+        assert_eq!(seen.current_injected, 0, "gap {gap_s} s, +{ahead}: {seen:?}");
+        assert!(
+            seen.flagged_injected.iter().any(|e| matches!(e, FrameError::ForeignSender { locomotive: 65 })),
+            "{:?}",
+            seen.flagged_injected
+        );
+        assert!(seen.flagged_genuine.is_empty(), "gap {gap_s} s, +{ahead}: {:?}", seen.flagged_genuine);
+        assert_eq!(seen.current_genuine, seen.reports_genuine, "gap {gap_s} s, +{ahead}: {seen:?}");
     }
 }

@@ -119,28 +119,28 @@ async fn monitor_task(cycles: DwtCycles) {
     app::monitor_loop(cycles, pbm::can::PowerUp { locomotive: LOCOMOTIVE, release_count: 0 }).await;
 }
 
-/// The locomotive number the CAN frames carry (0–63): `PBM_LOCOMOTIVE` at build time, 0 without
-/// it. The release count starts at 0 on every power-up: this image keeps no non-volatile
+/// The locomotive's fleet number (0–4095; the session frame carries all 12 bits, every frame
+/// the low 6): `PBM_LOCOMOTIVE` at build time, 0 without it. The release count starts at 0 on every power-up: this image keeps no non-volatile
 /// counter yet, so every power-up after the first repeats the release count (and release
 /// number) of the one before, which a display that heard it refuses as an old recording
 /// (`can/README.md`). A controller in service must keep the count across power cycles.
-const LOCOMOTIVE: u8 = match option_env!("PBM_LOCOMOTIVE") {
+const LOCOMOTIVE: u16 = match option_env!("PBM_LOCOMOTIVE") {
     Some(text) => parse_locomotive(text.as_bytes()),
     None => 0,
 };
 
-/// `text` as a decimal 0–63 (a build error otherwise).
-const fn parse_locomotive(text: &[u8]) -> u8 {
+/// `text` as a decimal 0–4095 (a build error otherwise).
+const fn parse_locomotive(text: &[u8]) -> u16 {
     let mut value: u32 = 0;
     let mut i = 0;
     while i < text.len() {
         let d = text[i];
-        assert!(d.is_ascii_digit(), "PBM_LOCOMOTIVE must be a decimal number 0-63");
+        assert!(d.is_ascii_digit(), "PBM_LOCOMOTIVE must be a decimal number 0-4095");
         value = value * 10 + (d - b'0') as u32;
-        assert!(value <= 63, "PBM_LOCOMOTIVE must be 0-63");
+        assert!(value <= 4095, "PBM_LOCOMOTIVE must be 0-4095");
         i += 1;
     }
-    value as u8
+    value as u16
 }
 
 /// Sends the monitor's frames on bxCAN1.
