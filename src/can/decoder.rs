@@ -1476,7 +1476,17 @@ impl Decoder {
         let Some(mut s) = self.st.session else {
             return Err(FrameError::NoHeartbeat);
         };
-        if link.locomotive_slot() != s.identity.locomotive || !self.same_unit(&link) {
+        if link.locomotive_slot() != s.identity.locomotive {
+            return Err(FrameError::ForeignSender { locomotive: link.locomotive });
+        }
+        if !self.same_unit(&link) {
+            // Another unit speaks for this locomotive (its number is the same modulo 64): the
+            // session's count is in doubt until its own unit's session frame gives it again, so
+            // the reports around it are not current (a ninth black-box tester's impostor that
+            // carried on the heartbeat counter had its report in the same second shown current).
+            if let Some(o) = self.st.session.as_mut() {
+                o.doubt_count();
+            }
             return Err(FrameError::ForeignSender { locomotive: link.locomotive });
         }
         // Right after the last accepted heartbeat, with its counter; or, when that heartbeat was

@@ -417,3 +417,41 @@ fn another_unit_with_the_same_locomotive_number_modulo_64_is_never_current() {
         assert_eq!(seen.current_genuine, seen.reports_genuine, "gap {gap_s} s, +{ahead}: {seen:?}");
     }
 }
+
+/// A unit with another fleet number (the same modulo 64) that carries on the live unit's
+/// heartbeat counter, release and count (a takeover without a gap; a ninth black-box tester):
+/// its first session frame is flagged `foreign_sender` and puts the session's count in doubt,
+/// so none of its reports after that frame is current (before, the report in the same second
+/// was). Before its first session frame nothing tells it from the live unit (can/README.md).
+#[test]
+fn reports_after_a_foreign_units_session_frame_are_not_current() {
+    let start = start_of(0);
+    let switch = start + 12_500_000;
+    let mut stream: Vec<Timed> =
+        session_of_unit(LOCO + 64, 0, start, 30).into_iter().filter(|e| e.t < switch).collect();
+    stream.extend(
+        session_of_unit(LOCO, 0, start, 30)
+            .into_iter()
+            .filter(|e| e.t >= switch)
+            .map(|e| Timed { injected: true, ..e }),
+    );
+    let mut d = Decoder::new();
+    let mut flagged_at = None;
+    let mut current_after = 0;
+    for e in &stream {
+        let r = d.receive(e.t, &e.f);
+        match r.result {
+            Err(FrameError::ForeignSender { locomotive }) if e.injected => {
+                assert_eq!(locomotive, LOCO);
+                flagged_at.get_or_insert(e.t);
+            }
+            Err(err) => assert!(e.injected, "genuine frame flagged at {}: {err:?}", e.t),
+            Ok(Report::Fault(_)) if e.injected && flagged_at.is_some() => {
+                current_after += usize::from(!r.stale && d.is_current(e.t, e.t));
+            }
+            Ok(_) => {}
+        }
+    }
+    assert!(flagged_at.is_some(), "the foreign unit's session frame must be flagged");
+    assert_eq!(current_after, 0, "no report of the foreign unit current after its session frame");
+}
