@@ -376,8 +376,8 @@ pub struct SessionLink {
     /// The locomotive's fleet number (12 bits used: the low 6 are the status frame's
     /// locomotive).
     pub locomotive: u16,
-    /// Release commands and power-ups since the controller was new (non-volatile, never wraps
-    /// in service).
+    /// Release commands and power-ups since the controller was new (non-volatile; it wraps at
+    /// 2³², and receivers compare counts in serial-number order).
     pub release_count: u32,
 }
 
