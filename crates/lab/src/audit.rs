@@ -2098,47 +2098,38 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
             c
         })
         .collect();
-    for (w, lm, evals) in &wide_fits {
+    // Parts beyond tolerance, alone and next to a mechanism: one row each.
+    let part_fits = wide_fits
+        .iter()
+        .map(|(w, lm, evals)| (w, None, lm, evals))
+        .chain(mixed_fits.iter().map(|(w, e, lm, evals)| (w, Some(*e), lm, evals)));
+    for (w, mechanism, lm, evals) in part_fits {
         let wprob = Problem { data, spread: wide_box(w) };
         let u = lm.x[w.index];
-        let scale = wide_scale(w, u);
-        let dims = lm.x.len();
-        let s2 = lm.rss / (n.saturating_sub(dims + 1).max(1)) as f64 * inflation;
-        let sigma = (inverse_diag(&lm.jtj, dims)[w.index] * s2).max(0.0).sqrt() * 2.0 * w.spread;
-        ranking.push(CandidateFit {
-            name: w.name.to_owned(),
-            effects: Vec::new(),
-            base_u: lm.x.clone(),
-            rss: lm.rss,
-            k: dims + 1,
-            nmse_pct: wprob.nmse(&lm.x, &[]),
-            delta_bic: dbic(base_lm.rss, lm.rss, 1),
-            evaluations: *evals,
-            parameter: Some((w.name, scale, sigma)),
-            flag: wide_flag(w, u, sigma),
-        });
-    }
-    for (w, e, lm, evals) in &mixed_fits {
-        let wprob = Problem { data, spread: wide_box(w) };
-        let (u, ue) = (lm.x[w.index], lm.x[nb]);
         let dims = lm.x.len();
         let s2 = lm.rss / (n.saturating_sub(dims + 1).max(1)) as f64 * inflation;
         let diag = inverse_diag(&lm.jtj, dims);
         let sigma = (diag[w.index] * s2).max(0.0).sqrt() * 2.0 * w.spread;
-        let sd_u = (diag[nb] * s2).max(0.0).sqrt().hypot(pinned_spread_u(lm, nb, nb, Some(w.index)));
-        let (v, sd) = (effect_value(*e, ue), sd_u * effect_slope(*e, ue).abs());
-        let flag = effects_flag(&[(*e, v, sd)], &[ue]).or_else(|| wide_flag(w, u, sigma));
+        let effects: Vec<(Mechanism, f64, f64)> = mechanism
+            .map(|e| {
+                let ue = lm.x[nb];
+                let sd_u = (diag[nb] * s2).max(0.0).sqrt().hypot(pinned_spread_u(lm, nb, nb, Some(w.index)));
+                (e, effect_value(e, ue), sd_u * effect_slope(e, ue).abs())
+            })
+            .into_iter()
+            .collect();
+        let mechanisms: Vec<Mechanism> = effects.iter().map(|e| e.0).collect();
         ranking.push(CandidateFit {
-            name: format!("{e}+{}", w.name),
-            effects: vec![(*e, v, sd)],
+            name: mechanisms.iter().map(|e| e.name()).chain([w.name]).collect::<Vec<_>>().join("+"),
+            flag: effects_flag(&effects, &lm.x[nb..]).or_else(|| wide_flag(w, u, sigma)),
+            effects,
             base_u: lm.x[..nb].to_vec(),
             rss: lm.rss,
             k: dims + 1,
-            nmse_pct: wprob.nmse(&lm.x, &[*e]),
-            delta_bic: dbic(base_lm.rss, lm.rss, 2),
+            nmse_pct: wprob.nmse(&lm.x, &mechanisms),
+            delta_bic: dbic(base_lm.rss, lm.rss, 1 + mechanisms.len()),
             evaluations: *evals,
             parameter: Some((w.name, wide_scale(w, u), sigma)),
-            flag,
         });
     }
     for c in ranking.iter_mut().filter(|c| c.parameter.is_some() && c.flag.is_none()) {
