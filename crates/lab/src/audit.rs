@@ -976,6 +976,16 @@ fn worse_nmse_flag(c: &CandidateFit, base: &CandidateFit) -> Option<String> {
         .then(|| format!("it makes the NMSE worse ({:.3} % → {:.3} %)", base.nmse_pct, c.nmse_pct))
 }
 
+/// A magnitude and its 1 σ in words, to `decimals` places; a singular fit (a magnitude at its
+/// bound, a flat direction) has no finite 1 σ, and that is said in words.
+pub(crate) fn magnitude_text(v: f64, sd: f64, unit: &str, decimals: usize) -> String {
+    if sd.is_finite() {
+        format!("{v:.decimals$} ± {sd:.decimals$} {unit}")
+    } else {
+        format!("{v:.decimals$} {unit} (1 σ not determined)")
+    }
+}
+
 /// A candidate with its magnitudes in words.
 fn candidate_text(c: &CandidateFit) -> String {
     c.terms_text().join(", ")
@@ -1172,17 +1182,8 @@ pub(crate) fn ranking_line(
     nmse_pct: f64,
     effects: &[(&str, &str, f64, f64)],
 ) -> String {
-    // A singular fit (a magnitude at its bound, a flat direction) has no finite 1 σ: said in words.
-    let effects: Vec<String> = effects
-        .iter()
-        .map(|(e, unit, v, u)| {
-            if u.is_finite() {
-                format!("{e} = {v:.4} ± {u:.4} {unit}")
-            } else {
-                format!("{e} = {v:.4} {unit} (1 σ not determined)")
-            }
-        })
-        .collect();
+    let effects: Vec<String> =
+        effects.iter().map(|(e, unit, v, u)| format!("{e} = {}", magnitude_text(*v, *u, unit, 4))).collect();
     format!(
         "  {name:<36} ΔBIC {delta_bic:>10.1}  RSS ratio {rss_ratio:>8.2}  NMSE {nmse_pct:.3} %  {}\n",
         effects.join(", ")
@@ -1382,16 +1383,16 @@ impl CandidateFit {
     /// [`Self::terms`] in words, one per term (a part's factor to 3 decimals, a mechanism's
     /// magnitude to 4).
     pub fn terms_text(&self) -> Vec<String> {
+        self.terms_named(|name| name.to_owned())
+    }
+
+    /// [`Self::terms_text`] with each term's name written by `name` (bold in HTML).
+    pub fn terms_named(&self, name: impl Fn(&str) -> String) -> Vec<String> {
         self.terms()
             .into_iter()
-            .map(|(name, unit, v, sd)| {
-                if !sd.is_finite() {
-                    format!("{name} = {v:.4} {unit} (1 σ not determined)")
-                } else if unit == PARAMETER_UNIT {
-                    format!("{name} = {v:.3} ± {sd:.3} {unit}")
-                } else {
-                    format!("{name} = {v:.4} ± {sd:.4} {unit}")
-                }
+            .map(|(n, unit, v, sd)| {
+                let decimals = if unit == PARAMETER_UNIT && sd.is_finite() { 3 } else { 4 };
+                format!("{} = {}", name(n), magnitude_text(v, sd, unit, decimals))
             })
             .collect()
     }

@@ -223,17 +223,8 @@ pub fn html_section(out: &AuditOutcome) -> Result<String> {
         "<section class=\"audit\"><h2>Model-discrepancy audit</h2><p>Data: <code>{}</code></p>",
         esc(&out.source)
     );
-    let terms = out.chosen.terms_text();
-    let cause = if terms.is_empty() {
-        format!("<b>{}</b>", esc(&out.cause))
-    } else {
-        // "name = v ± u unit": the name in bold.
-        terms
-            .iter()
-            .map(|t| t.split_once(" = ").map_or(t.clone(), |(n, rest)| format!("<b>{n}</b> = {rest}")))
-            .collect::<Vec<_>>()
-            .join(" and ")
-    };
+    let terms = out.chosen.terms_named(|name| format!("<b>{name}</b>"));
+    let cause = if terms.is_empty() { format!("<b>{}</b>", esc(&out.cause)) } else { terms.join(" and ") };
     let _ = write!(
         h,
         "<h3>Verdict</h3><p>Cause: {cause}.</p><p>{}</p><p>NMSE (SPEC §6, mean measured trace) base <b>{:.3} %</b> → \
