@@ -191,7 +191,11 @@ fn trace_locomotive(path: &Path) -> u16 {
         .filter_map(|l| l.trim().strip_prefix('#'))
         .filter_map(|l| l.split_once(':'))
         .find(|(k, _)| k.trim() == "locomotive")
-        .map_or(0, |(_, v)| pbm::can::codec::fleet_number(v))
+        .map_or(0, |(_, v)| {
+            pbm::can::codec::fleet_number(v).unwrap_or_else(|| {
+                panic!("{}: locomotive {:?} is above 4095, the largest fleet number the CAN frames carry", path.display(), v.trim())
+            })
+        })
 }
 
 fn main() {

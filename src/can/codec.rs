@@ -35,22 +35,31 @@ impl Identity {
     }
 }
 
-/// The locomotive number of a locomotive's name as data sets write it (`loco-05` → 5): the
-/// decimal digits at its end, modulo 64 (the width of [`l::LOCOMOTIVE`]); 0 without digits.
-pub fn locomotive_number(name: &str) -> u8 {
-    (fleet_number(name) & 0x3F) as u8
+/// The largest fleet number a session frame carries (12 bits: [`l::SESSION_LOCOMOTIVE`] and
+/// [`l::SESSION_LOCOMOTIVE_HIGH`]).
+pub const MAX_FLEET_NUMBER: u16 = 4095;
+
+/// The locomotive number of a locomotive's name as data sets write it (`loco-05` → 5): the low
+/// 6 bits (the width of [`l::LOCOMOTIVE`]) of its [`fleet_number`]; `None` where that is `None`.
+pub fn locomotive_number(name: &str) -> Option<u8> {
+    fleet_number(name).map(|n| (n & 0x3F) as u8)
 }
 
 /// The fleet number the session frame carries for a locomotive named `name`: the decimal
-/// digits at its end, modulo 4096 (12 bits; `loco-71` → 71); 0 without digits. Its low 6 bits
-/// are [`locomotive_number`].
-pub fn fleet_number(name: &str) -> u16 {
-    let (mut v, mut place) = (0u32, 1u32);
-    for d in name.trim().bytes().rev().take_while(u8::is_ascii_digit) {
-        v = (v + u32::from(d - b'0') * place) % 4096;
-        place = (place * 10) % 4096;
+/// digits at its end (`loco-71` → 71, `loco-0071` → 71); 0 without digits. `None` when they
+/// exceed [`MAX_FLEET_NUMBER`]: the frames cannot carry that number, and wrapping it would make
+/// the locomotive indistinguishable from the one 4096 below it, so a caller refuses it.
+pub fn fleet_number(name: &str) -> Option<u16> {
+    let name = name.trim();
+    let digits = name.bytes().rev().take_while(u8::is_ascii_digit).count();
+    let mut v: u16 = 0;
+    for d in name.bytes().skip(name.len() - digits) {
+        v = v.checked_mul(10)?.checked_add(u16::from(d - b'0'))?;
+        if v > MAX_FLEET_NUMBER {
+            return None;
+        }
     }
-    v as u16
+    Some(v)
 }
 
 /// CRC-8 SAE J1850 of one nibble shifted through the register (`T[n]` = CRC step of `n << 4`):

@@ -409,9 +409,19 @@ fn output_path(dir: &Path, name: &str, ext: &str) -> PathBuf {
 
 /// The identity a replayed release's CAN frames carry: the fleet number of `locomotive`
 /// ([`pbm::can::codec::fleet_number`], whose low 6 bits every frame carries) and the release count of a monitor that has seen
-/// `earlier_releases` recorded releases before it (what the firmware sends).
-pub fn release_identity(locomotive: &str, earlier_releases: u32) -> PowerUp {
-    PowerUp { locomotive: pbm::can::codec::fleet_number(locomotive), release_count: earlier_releases }
+/// `earlier_releases` recorded releases before it (what the firmware sends). An error says why
+/// when the locomotive's number does not fit the frames' 12 bits: it is refused, not wrapped
+/// onto the locomotive 4096 below it.
+pub fn release_identity(locomotive: &str, earlier_releases: u32) -> Result<PowerUp, String> {
+    match pbm::can::codec::fleet_number(locomotive) {
+        Some(number) => Ok(PowerUp { locomotive: number, release_count: earlier_releases }),
+        None => Err(format!(
+            "locomotive {:?}: its number is above {}, the largest the CAN frames carry (12 bits); \
+             its frames would be those of the locomotive 4096 below it",
+            locomotive.trim(),
+            pbm::can::codec::MAX_FLEET_NUMBER
+        )),
+    }
 }
 
 /// Replays one item and writes its outputs (results CSV, plot); a bad input removes what was
@@ -464,7 +474,12 @@ fn replay_release(
     keep_frames: bool,
     mut observe: impl FnMut(&ReplaySample),
 ) -> Result<TraceReplay, ReplayError> {
-    let identity = release_identity(locomotive, earlier_releases);
+    let identity = match release_identity(locomotive, earlier_releases) {
+        Ok(identity) => identity,
+        // Frames that are not kept carry nobody's number: the replay's other outputs stand.
+        Err(_) if !keep_frames => PowerUp { locomotive: 0, release_count: earlier_releases },
+        Err(why) => return Err(FileError::new(name, 0, why).into()),
+    };
     let results_path = opts.out.as_deref().map(|d| output_path(d, name, "csv"));
     let mut results = match &results_path {
         Some(p) => {
@@ -520,12 +535,13 @@ fn replay_release(
 /// data set's or archive's order) is its release k, so every report in a replay's CAN log
 /// belongs to one locomotive and one release.
 #[derive(Debug, Default)]
-struct ReleaseNumbering(std::collections::HashMap<u16, u32>);
+struct ReleaseNumbering(std::collections::HashMap<Option<u16>, u32>);
 
 impl ReleaseNumbering {
     /// The releases the locomotive's monitor has seen before this one.
     fn next(&mut self, locomotive: Option<&str>) -> u32 {
-        let loco = locomotive.map_or(0, pbm::can::codec::fleet_number);
+        // A number the frames cannot carry (`None`) is refused when its frames are kept.
+        let loco = locomotive.map_or(Some(0), pbm::can::codec::fleet_number);
         let n = self.0.entry(loco).or_insert(0);
         let before = *n;
         *n = n.wrapping_add(1);

@@ -214,6 +214,38 @@ fn summary_csv_quotes_fields_with_commas_and_quotes() {
     assert_eq!(&rows[0][2], "loco \"7\"");
 }
 
+/// A locomotive whose number the CAN frames cannot carry (above 4095) is refused when its
+/// frames are written, with the reason, and replayed as usual without a CAN log; the other
+/// locomotives' frames are written.
+#[test]
+fn a_locomotive_number_beyond_twelve_bits_is_refused_for_the_can_log_not_wrapped() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("set");
+    std::fs::create_dir_all(&dir).unwrap();
+    for f in ["a.csv", "b.csv"] {
+        std::fs::copy(small().join("traces/train/normal_0000.csv"), dir.join(f)).unwrap();
+    }
+    std::fs::write(
+        dir.join(MANIFEST),
+        "file,label,locomotive,split\na.csv,normal,loco-5000,test\nb.csv,normal,loco-904,test\n",
+    )
+    .unwrap();
+    let (items, _) = items(&dir, None).unwrap();
+    let plain = replay_all(&items, &ReplayOptions::default()).unwrap();
+    assert!(plain.iter().all(Result::is_ok), "without a CAN log both replay");
+    let opts = ReplayOptions { can_log: Some(tmp.path().join("can.log")), ..Default::default() };
+    let with_log = replay_all(&items, &opts).unwrap();
+    let e = with_log[0].as_ref().unwrap_err().to_string();
+    assert!(e.contains("loco-5000") && e.contains("above 4095"), "{e}");
+    assert!(with_log[1].is_ok(), "loco-904 (5000 mod 4096) is not refused");
+    assert_eq!(pbm::can::codec::fleet_number("loco-0904"), Some(904));
+    assert_eq!(pbm::can::codec::fleet_number("loco-4095"), Some(4095));
+    assert_eq!(pbm::can::codec::fleet_number("loco-4096"), None);
+    assert_eq!(pbm::can::codec::fleet_number("loco-99999999999999999999"), None);
+    assert_eq!(pbm::can::codec::fleet_number("loco"), Some(0));
+    assert_eq!(pbm::can::codec::locomotive_number("loco-71"), Some(7));
+}
+
 #[test]
 fn single_trace_replay_writes_results_and_plot() {
     let tmp = tempfile::tempdir().unwrap();

@@ -148,7 +148,7 @@ fn replay<'py>(
             t
         }
     };
-    let identity = release_identity(locomotive, earlier_releases);
+    let identity = release_identity(locomotive, earlier_releases).map_err(value_error)?;
     let run = py.detach(|| {
         let mut columns = Columns::default();
         let mut summariser = Summariser::default();
