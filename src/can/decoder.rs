@@ -372,6 +372,10 @@ struct Session {
     /// delayed by up to the latency step followed comes after the reports sent in that time,
     /// which its count does not include yet ([`OVERTAKEN_MAX`]).
     recent_reports_us: [u64; OVERTAKEN_MAX],
+    /// No session frame has given this session a count, and one of its session frames was
+    /// refuted (another unit's, or a count the locomotive's known count rules out): its
+    /// heartbeats do not speak for the locomotive's newest release ([`Decoder::refute_unvouched`]).
+    refuted: bool,
 }
 
 /// A status frame's `FaultReportCount` that contradicts the chain of the accepted reports'
@@ -627,6 +631,12 @@ pub struct Reception {
     /// [`l::SESSION_EVERY_STATUS_FRAMES`], or the first of a new release number) never came,
     /// from a locomotive that sends them: lost (an accepted status frame only).
     pub lost_session: bool,
+    /// This accepted frame belongs to a session that no session frame has vouched for and
+    /// whose session frame was refuted (another unit with the same number modulo 64, or a
+    /// count the locomotive's known count rules out: an old recording). Its status is not the
+    /// locomotive's live state and its reports are not current, until a session frame of the
+    /// locomotive's own unit gives the session its count.
+    pub refuted: bool,
 }
 
 impl Reception {
@@ -658,6 +668,7 @@ impl Reception {
             release_count: None,
             release_unconfirmed: false,
             lost_session: false,
+            refuted: false,
         }
     }
 }
@@ -954,6 +965,10 @@ impl Decoder {
         };
         if rec.result.is_ok() {
             rec.release_count = self.count_of(rec.identity);
+            rec.refuted = self
+                .st
+                .session
+                .is_some_and(|s| s.refuted && rec.identity.is_some_and(|id| id.locomotive == s.identity.locomotive));
         }
         rec
     }
@@ -1120,6 +1135,8 @@ impl Decoder {
     /// number than any seen from it (a power-up counts as a release) and, when `before` is its
     /// last session, a counter not above the seconds since that session's last heartbeat?
     fn restart_plausible(&self, link: &StatusLink, now: u64, before: Option<&Session>) -> bool {
+        // A refuted session (an impostor's) is not the locomotive's sender: nothing to be newer than.
+        let before = before.filter(|p| !p.refuted);
         let i = usize::from(link.identity.locomotive & 0x3F);
         let release = link.identity.release & 0x3F;
         let newest = self.st.newest_release[i];
@@ -1184,6 +1201,7 @@ impl Decoder {
             count_at: None,
             count_to_confirm: None,
             recent_reports_us: [0; OVERTAKEN_MAX],
+            refuted: false,
         });
         // A tentative session rests on one frame, which may be a replay: what it says of the
         // locomotive's newest release is believed only once a second heartbeat confirms it
@@ -1200,7 +1218,14 @@ impl Decoder {
         // The last heartbeat before this one that was due a session frame (the one before, or one
         // lost between: a stream whose heartbeats at multiples of 10 are dropped, with their
         // session frames, is no different, sixth black-box attacker N1) got none.
-        rec.lost_session = last_due_session(&before, link.counter).is_some_and(|due| before.count_at != Some(due))
+        // (A session frame of a later heartbeat, up to this one, gave the count too: the session
+        // frame of a new release's first heartbeat logged just before it, tenth black-box tester.)
+        let given_since = |due: u16| {
+            before
+                .count_at
+                .is_some_and(|c| c.wrapping_sub(due) % COUNTER_MOD <= link.counter.wrapping_sub(due) % COUNTER_MOD)
+        };
+        rec.lost_session = last_due_session(&before, link.counter).is_some_and(|due| !given_since(due))
             && self.newest_count(before.identity.locomotive).is_some();
         // A session frame due after the heartbeat before did not come: the count is in doubt
         // until the next one gives it (a stream stripped of its session frames is not vouched
@@ -1393,7 +1418,7 @@ impl Decoder {
         if let Some(count) = s.release_count() {
             self.note_count(s.identity.locomotive, count, now);
         }
-        if c.undo_release || c.release_wrapped {
+        if (c.undo_release || c.release_wrapped) && !s.refuted {
             self.st.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
         }
         rec.identity = Some(s.identity);
@@ -1402,7 +1427,8 @@ impl Decoder {
     fn remember(&mut self, link: &StatusLink) {
         let id = link.identity.masked();
         let i = usize::from(id.locomotive);
-        if self.st.seen & (1 << i) == 0 || release_not_before(id.release, self.st.newest_release[i]) {
+        let refuted = self.st.session.is_some_and(|s| s.refuted && s.identity.locomotive == id.locomotive);
+        if !refuted && (self.st.seen & (1 << i) == 0 || release_not_before(id.release, self.st.newest_release[i])) {
             self.st.newest_release[i] = id.release;
         }
         self.st.seen |= 1 << i;
@@ -1434,6 +1460,28 @@ impl Decoder {
     /// confirmed for its locomotive (the same 12-bit fleet number), or none was confirmed yet.
     fn same_unit(&self, link: &super::codec::SessionLink) -> bool {
         self.st.fleet.get(usize::from(link.locomotive_slot())).copied().flatten().is_none_or(|f| f == link.locomotive)
+    }
+
+    /// A session frame of the session followed was refuted (another unit's, or a count the
+    /// locomotive's known count rules out). When no session frame has vouched for the session
+    /// (no count given, none to confirm), the heartbeats it rests on are not taken to be the
+    /// locomotive's sender's: the newest release number goes back to that of the newest count
+    /// seen, and they do not raise it until a session frame of the locomotive's own unit gives
+    /// the session its count. Else an impostor after a silence (a unit with the same number
+    /// modulo 64, or a forged restart) raised the newest release, and the genuine unit's
+    /// restart after it read as behind it: its first heartbeat was flagged (ninth black-box
+    /// tester, 13 of 18 trials). A session that had a count (the live unit's, into which
+    /// another's session frame was injected) only has its count put in doubt.
+    fn refute_unvouched(&mut self) {
+        let Some(s) = self.st.session.as_mut() else { return };
+        if s.count_base.is_some() || s.count_to_confirm.is_some() {
+            return;
+        }
+        s.refuted = true;
+        let locomotive = s.identity.locomotive;
+        if let Some((count, _)) = self.newest_count(locomotive) {
+            self.st.newest_release[usize::from(locomotive & 0x3F)] = (count & 0x3F) as u8;
+        }
     }
 
     /// The newest release count seen from the locomotive, and when it was last heard.
@@ -1487,6 +1535,7 @@ impl Decoder {
             if let Some(o) = self.st.session.as_mut() {
                 o.doubt_count();
             }
+            self.refute_unvouched();
             return Err(FrameError::ForeignSender { locomotive: link.locomotive });
         }
         // Right after the last accepted heartbeat, with its counter; or, when that heartbeat was
@@ -1533,6 +1582,7 @@ impl Decoder {
             }
         } else if let Some((known, heard)) = self.newest_count(link.locomotive_slot()) {
             if !count_within_time(known, heard, got, now) {
+                self.refute_unvouched();
                 return Err(FrameError::WrongReleaseCount { known, got });
             }
             if count_ahead(known, got).is_some_and(|d| d > 0) {
@@ -1542,6 +1592,7 @@ impl Decoder {
             }
         }
         s.give_count(got, link.release(), link.counter);
+        s.refuted = false;
         self.st.session = Some(s);
         if !s.tentative {
             self.note_count(s.identity.locomotive, got, now);
@@ -1924,7 +1975,7 @@ impl Decoder {
         }
         s.fault_before = s.fault;
         rec.restart_jump = s.restart_jump;
-        if undo_release {
+        if undo_release && !s.refuted {
             self.st.newest_release[usize::from(s.identity.locomotive & 0x3F)] = s.identity.release;
         }
         s.fault = Some(track);

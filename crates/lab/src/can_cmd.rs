@@ -287,6 +287,10 @@ pub fn status_line(time_us: u64, id: Option<Identity>, s: &StatusReport) -> Stri
     )
 }
 
+/// Why a status frame or fault report of a refuted session ([`pbm::can::Reception::refuted`])
+/// is not shown as the locomotive's live state.
+const REFUTED_TEXT: &str = "not current: this session's session frame was refuted (another unit with this number modulo 64, or an old recording) and none of the locomotive's own has vouched for it";
+
 /// Header of the CSV output of `can decode --format csv`.
 pub const CSV_HEADER: &str = "time_us,id,data,message,counter,Diagnosis,Confidence,NoDiagnosisReason,\
 ReleaseCompleted,TimeSinceRelease,SupplyPressure,LeakDiameter,SensorHealth,EstimatorState,ChamberPressure,\
@@ -612,6 +616,8 @@ impl<W: Write> CabDisplay<W> {
                     "stale: the stream is delayed beyond the latency step against its first heartbeat".to_owned()
                 } else if reception.early {
                     "not current: sent earlier than the reports before it place it; the next report decides".to_owned()
+                } else if reception.refuted {
+                    REFUTED_TEXT.to_owned()
                 } else if reception.release_unconfirmed {
                     "not current: no session frame has given this session's release count yet, and this locomotive's is known: a restart, or a session heard after a silence, cannot be told from a recording of one 64 releases earlier until it does"
                         .to_owned()
@@ -638,7 +644,11 @@ impl<W: Write> CabDisplay<W> {
             (Ok(Report::Status(s)), DecodeFormat::Text) => {
                 self.summary.status_reports += 1;
                 if self.show_status {
-                    writeln!(self.out, "{}", status_line(t, id, s))?;
+                    if reception.refuted {
+                        writeln!(self.out, "{}  [{REFUTED_TEXT}]", status_line(t, id, s))?;
+                    } else {
+                        writeln!(self.out, "{}", status_line(t, id, s))?;
+                    }
                 }
             }
             (Ok(Report::Session(link)), DecodeFormat::Text) => {

@@ -455,3 +455,114 @@ fn reports_after_a_foreign_units_session_frame_are_not_current() {
     assert!(flagged_at.is_some(), "the foreign unit's session frame must be flagged");
     assert_eq!(current_after, 0, "no report of the foreign unit current after its session frame");
 }
+
+/// After a silence, another unit with the same number modulo 64 (its session frames flagged
+/// `foreign_sender`) or a recording of an older power-up whose 6-bit release number reads as
+/// newer (its session frame flagged as an old recording) runs for a while; then the genuine
+/// monitor restarts. Its first heartbeat was flagged `wrong_release` ("went backwards"): the
+/// impostor's heartbeats had raised the locomotive's newest release (ninth and tenth black-box
+/// testers). Now a session whose session frame is refuted and that none vouched for does not
+/// speak for the locomotive: the genuine restart is clean and current, and the impostor's
+/// status frames after its refuted session frame are shown as not current (a recording whose
+/// release number reads as behind is flagged frame by frame, as before).
+#[test]
+fn a_genuine_restart_after_a_refuted_impostor_is_not_flagged() {
+    let genuine = |k: usize, i: usize| session(k, start_of(i));
+    let cases: [(&str, u16, usize); 4] = [
+        ("other unit, count +1", LOCO + 64, 103),
+        ("other unit, +3", LOCO + 64, 105),
+        ("recording 40 back", LOCO, 62),
+        ("recording 13 back", LOCO, 89),
+    ];
+    for (what, unit, impostor_count) in cases {
+        let mut stream: Vec<Timed> = (0..3).flat_map(|i| genuine(100 + i, i)).collect();
+        let t = start_of(3) + 2_000_000;
+        let impostor: Vec<Timed> =
+            session_of_unit(unit, impostor_count, t, 8).into_iter().map(|e| Timed { injected: true, ..e }).collect();
+        stream.extend(impostor);
+        stream.extend(session(103, t + 14_000_000));
+        let mut d = Decoder::new();
+        let (mut live_status, mut flagged_impostor, mut genuine_reports, mut genuine_current) = (0, 0, 0, 0);
+        for e in &stream {
+            let r = d.receive(e.t, &e.f);
+            match (&r.result, e.injected) {
+                (Err(err), false) => panic!("{what}: genuine frame flagged at {}: {err:?}", e.t),
+                (Err(_), true) => flagged_impostor += 1,
+                (Ok(Report::Status(_)), true) => live_status += usize::from(!r.refuted),
+                (Ok(Report::Fault(_)), true) => {
+                    assert!(r.stale || !d.is_current(e.t, e.t), "{what}: impostor report current at {}", e.t)
+                }
+                (Ok(Report::Fault(_)), false) => {
+                    genuine_reports += 1;
+                    genuine_current += usize::from(!r.stale && d.is_current(e.t, e.t));
+                }
+                _ => {}
+            }
+        }
+        assert!(flagged_impostor > 0, "{what}: the impostor's session frame must be flagged");
+        // Only the heartbeat that opened the session, before its session frame came, is shown live.
+        assert!(live_status <= 1, "{what}: {live_status} impostor status frames shown as live");
+        assert_eq!(genuine_current, genuine_reports, "{what}");
+    }
+}
+
+/// The session frame of a new release's first heartbeat logged just before that heartbeat
+/// (the same stamp; frames of one tick in another order): it gave the count, so no session
+/// frame is lost and the release's reports are current (tenth black-box tester: one genuine
+/// report was not current, and a session frame reported lost, on untouched traffic).
+#[test]
+fn a_session_frame_logged_before_its_heartbeat_at_a_new_release_is_not_lost() {
+    let mut rep = CanReporter::new();
+    rep.set_identity(PowerUp { locomotive: LOCO, release_count: 40 });
+    rep.new_release();
+    let status =
+        StatusReport { sensor_fault: None, estimator: EstimatorState::Settled, pressure_mbar: 7_000, version: (0, 1) };
+    let mut stream: Vec<Timed> = Vec::new();
+    for n in 0..3000u32 {
+        if n == 1_050 {
+            rep.new_release();
+        }
+        let fault = FaultReport {
+            verdict: Verdict::Class { class: FaultClass::Normal, confidence_pct: 90 },
+            time_since_release_cs: (n % 1_050 + 1) as u16,
+            supply_mbar: 7_700,
+            leak_um: 0,
+            release_completed: false,
+        };
+        let report = (n % 1_050 >= 230).then_some(&fault);
+        let mut tick: Vec<Timed> = rep
+            .step(&status, report, true)
+            .as_slice()
+            .iter()
+            .map(|f| Timed { t: 1_000_000 + u64::from(n) * 10_000, f: *f, session: 0, injected: false })
+            .collect();
+        // Every session frame logged before the status frame of its tick.
+        if let Some(k) = tick.iter().position(|e| is_kind(&e.f, MessageKind::Session)) {
+            let session_frame = tick.remove(k);
+            let status_at = tick.iter().position(|e| is_kind(&e.f, MessageKind::Status)).unwrap_or(0);
+            tick.insert(status_at, session_frame);
+        }
+        stream.extend(tick);
+    }
+    let mut d = Decoder::new();
+    let (mut lost, mut reports, mut current, mut flagged) = (0, 0, 0, Vec::new());
+    for e in &stream {
+        let r = d.receive(e.t, &e.f);
+        lost += usize::from(r.lost_session);
+        match r.result {
+            Err(err) => flagged.push((e.t, err)),
+            Ok(Report::Fault(_)) => {
+                reports += 1;
+                current += usize::from(!r.stale && d.is_current(e.t, e.t));
+            }
+            Ok(_) => {}
+        }
+    }
+    // The power-up's session frame, logged before the first heartbeat of all, cannot be judged
+    // (no heartbeat yet): flagged as out of order. Nothing else is.
+    assert_eq!(flagged.len(), 1, "{flagged:?}");
+    assert!(matches!(flagged[0].1, FrameError::NoHeartbeat), "{flagged:?}");
+    // (First contact: no count known before, so nothing is owed.)
+    assert_eq!(lost, 0);
+    assert_eq!(current, reports, "{current} of {reports} current");
+}
