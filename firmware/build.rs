@@ -193,7 +193,11 @@ fn trace_locomotive(path: &Path) -> u16 {
         .find(|(k, _)| k.trim() == "locomotive")
         .map_or(0, |(_, v)| {
             pbm::can::codec::fleet_number(v).unwrap_or_else(|| {
-                panic!("{}: locomotive {:?} is above 4095, the largest fleet number the CAN frames carry", path.display(), v.trim())
+                panic!(
+                    "{}: locomotive {:?} is above 4095, the largest fleet number the CAN frames carry",
+                    path.display(),
+                    v.trim()
+                )
             })
         })
 }
