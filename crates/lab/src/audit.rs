@@ -68,7 +68,9 @@
 //!    magnitude at the edge of its search range ([`AT_BOUND_U`]; the data ask for more than the
 //!    library allows), one the data do not determine (1 σ as large as its distance from off), or
 //!    a "beyond tolerance" parameter inside its tolerance is flagged, reported, and never named.
-//!    The best pair replaces the best single under the same rules against that single; a
+//!    The best pair replaces the best single under the same rules against that single and
+//!    against each of its own terms fitted alone, credible or not (a pair one of whose terms
+//!    alone fits as well does not need the other: it is said, not named); a
 //!    parameter beyond tolerance is preferred to a mechanism only when its RSS is
 //!    [`ALTERNATIVE_RSS_RATIO`] lower, and candidates within that ratio of the chosen one are
 //!    listed as alternatives the data cannot tell apart. Otherwise `none` (the base residual is at
@@ -2160,13 +2162,35 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     };
     let best_single = best_of(1);
     let mut chosen = base.clone();
+    // A pair and the term of it that it does not clearly beat alone (credible or not): that
+    // term's fit alone explains as much, so the pair's other term is not needed.
+    let term_alone_as_good = |p: &CandidateFit| {
+        ranking
+            .iter()
+            .filter(|s| terms(s) == 1)
+            .filter(|s| match (s.parameter, &s.effects[..]) {
+                (Some(part), []) => p.parameter.is_some_and(|q| q.0 == part.0),
+                (None, [(m, ..)]) => p.effects.iter().any(|e| e.0 == *m),
+                _ => false,
+            })
+            .find(|s| !(dbic(s.rss, p.rss, 1) > BIC_THRESHOLD && s.rss / p.rss >= MIN_RSS_RATIO))
+    };
+    let mut pair_not_needed = None;
     if let Some(s) = best_single {
         if s.delta_bic > BIC_THRESHOLD && base.rss / s.rss >= MIN_RSS_RATIO {
             chosen = s.clone();
-            // Any pair may replace the best single, but only by beating it on both rules.
+            // Any pair may replace the best single, but only by beating it on both rules, and
+            // each of its own terms alone too: a pair one of whose terms alone fits as well does
+            // not need the other (a sixth independent tester's spring 1.2× stiff was named
+            // `gas_temperature` with `spring_rate`, where the spring rate alone fitted as well,
+            // RSS ratio 26.1 against 26.1, but was not credible by its σ: the gas temperature
+            // only stood in for a discharge coefficient at its bound).
             if let Some(p) = best_of(2) {
                 if dbic(s.rss, p.rss, 1) > BIC_THRESHOLD && s.rss / p.rss >= MIN_RSS_RATIO {
-                    chosen = p.clone();
+                    match term_alone_as_good(p) {
+                        None => chosen = p.clone(),
+                        Some(alone) => pair_not_needed = Some((p, alone)),
+                    }
                 }
             }
         }
@@ -2196,6 +2220,19 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     // mean differs from the twin (a cause fitted to the mean). Said, never named.
     let mut flagged = flagged;
     let (rb, rc) = (to_noise(base.rss), to_noise(chosen.rss));
+    if let Some((p, alone)) = pair_not_needed {
+        flagged.insert(
+            0,
+            format!(
+                "{}: fits (residual {rb:.1}× → {:.1}× the noise), but {} alone fits as well ({:.1}×), so the pair is \
+                 not named",
+                candidate_text(p),
+                to_noise(p.rss),
+                alone.name,
+                to_noise(alone.rss)
+            ),
+        );
+    }
     // A pair is named only after one of its terms passed alone (forward selection keeps two free
     // terms from bending to an effect outside the library). A pair that fits when neither of its
     // terms does alone (a late valve on a brake with a weak preload) is said, not named.
