@@ -1585,6 +1585,15 @@ impl Decoder {
                 self.refute_unvouched();
                 return Err(FrameError::WrongReleaseCount { known, got });
             }
+            // A release this receiver saw begin after it last heard the locomotive's newest
+            // count cannot carry that count: the monitor counts every release command. (A
+            // recording that reached, after a silence aligned on the heartbeat counter's 4096 s
+            // range, the release whose count the receiver had heard a day before was taken for
+            // the session going on and its reports shown current: tenth black-box tester, N5.)
+            if got == known && s.release_before_us.is_some() && s.release_since_us > heard {
+                self.refute_unvouched();
+                return Err(FrameError::WrongReleaseCount { known, got });
+            }
             if count_ahead(known, got).is_some_and(|d| d > 0) {
                 // Newer than any count seen: a genuine restart, however far its release number
                 // jumped.

@@ -566,3 +566,43 @@ fn a_session_frame_logged_before_its_heartbeat_at_a_new_release_is_not_lost() {
     assert_eq!(lost, 0);
     assert_eq!(current, reports, "{current} of {reports} current");
 }
+
+/// A recording of a whole power-up, replayed exactly 4096 s later (the heartbeat counter's
+/// range, so every heartbeat continues the session in time): its later release reaches the
+/// count the receiver heard for that release before, and was taken for the session going on,
+/// its reports shown current (tenth black-box tester, N5: a demonstration log replayed at 25 ×
+/// 4096 s). A release the receiver saw begin after it last heard the locomotive's newest count
+/// cannot carry that count: none of the replay's reports is current.
+#[test]
+fn a_recording_replayed_on_the_heartbeat_counters_range_is_never_current() {
+    let mut rep = CanReporter::new();
+    rep.set_identity(PowerUp { locomotive: LOCO, release_count: 40 });
+    rep.new_release();
+    let status =
+        StatusReport { sensor_fault: None, estimator: EstimatorState::Settled, pressure_mbar: 7_000, version: (0, 1) };
+    let mut genuine: Vec<Timed> = Vec::new();
+    for n in 0..4_000u32 {
+        if n == 2_000 {
+            rep.new_release();
+        }
+        let fault = FaultReport {
+            verdict: Verdict::Class { class: FaultClass::AirLeak, confidence_pct: 90 },
+            time_since_release_cs: (n % 2_000 + 1) as u16,
+            supply_mbar: 7_700,
+            leak_um: 0,
+            release_completed: false,
+        };
+        let report = (n % 2_000 >= 230).then_some(&fault);
+        for f in rep.step(&status, report, true).as_slice() {
+            genuine.push(Timed { t: 1_000_000 + u64::from(n) * 10_000, f: *f, session: 0, injected: false });
+        }
+    }
+    for laps in [1u64, 3] {
+        let mut stream = genuine.clone();
+        stream.extend(genuine.iter().map(|e| Timed { t: e.t + laps * 4_096_000_000, injected: true, ..*e }));
+        let seen = decode(&stream);
+        assert!(seen.flagged_genuine.is_empty(), "{laps}: {:?}", seen.flagged_genuine);
+        assert_eq!(seen.current_genuine, seen.reports_genuine, "{laps}");
+        assert_eq!(seen.current_injected, 0, "{laps} × 4096 s: {seen:?}");
+    }
+}
