@@ -330,6 +330,40 @@ fn a_second_volume_is_not_named_without_its_look_alike() {
     }
 }
 
+/// A transducer whose offset alternates ± 0.05 bar from release to release (a seventh independent
+/// tester's case): the mean release fits the base model, but the releases do not agree with each
+/// other, so `none` ("consistent with the noise") is not earned; it was given. The same releases
+/// without the offsets are `none`.
+#[test]
+fn releases_that_disagree_with_each_other_are_never_none() {
+    use pbm::AdcCounts;
+    use pbm_lab::generate::{fleet, sense, simulate_plant, GENERATE_STEP_S, TRACE_SAMPLES};
+    use rand_core::SeedableRng;
+    let plant = fleet(41, 1)[0].params;
+    let (p, _) = simulate_plant(&plant, GENERATE_STEP_S, TRACE_SAMPLES).expect("plant");
+    for offset in [0.0, 0.05] {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(41);
+        let traces = (0..8)
+            .map(|k| {
+                let shift = if k % 2 == 0 { offset } else { -offset };
+                let bar =
+                    sense(&p, &mut rng).iter().map(|&c| pbm::sensor::bar_from_adc(AdcCounts(c)).0 + shift).collect();
+                (format!("release_{k:02}.csv"), pbm::TwinParams::nominal(), bar)
+            })
+            .collect();
+        let data = pbm_lab::audit::data_from_traces("alternating", traces).expect("data");
+        let out = audit(&data, AuditOptions::default()).expect("audit runs");
+        let text = out.verdict_text();
+        eprintln!("± {offset} bar: {text}");
+        if offset == 0.0 {
+            assert_eq!(out.cause, "none", "{text}");
+        } else {
+            assert_eq!(out.cause, "unexplained", "{text}");
+            assert!(text.contains("the releases are not consistent with each other"), "{text}");
+        }
+    }
+}
+
 /// A spring 1.2× stiffer than documented, from a sixth independent plant (tests/data/independent3):
 /// the spring rate alone fits to the noise (1.13, its 1 σ too wide to be beyond tolerance), and
 /// `gas_temperature` with the spring rate fits no better, the gas temperature standing in for a
