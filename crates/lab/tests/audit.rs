@@ -364,6 +364,45 @@ fn releases_that_disagree_with_each_other_are_never_none() {
     }
 }
 
+/// Releases logged by a clock 15 % slow (a release that takes 1.15 s is stamped 1 s): the data
+/// cannot tell it from more flow, so a named discharge coefficient or gas temperature must list
+/// the clock. A seventh independent tester's clocks 9–20 % off, and a 50 Hz logger written as
+/// 100 Hz, were named with no clock listed (the look-alike was listed only within ± 10 % of the
+/// flow factor).
+#[test]
+fn a_logger_clock_off_is_listed_with_the_flow_it_looks_like() {
+    use pbm::AdcCounts;
+    use pbm_lab::generate::{fleet, sense, simulate_plant, GENERATE_STEP_S, TRACE_SAMPLES};
+    use rand_core::SeedableRng;
+    let plant = fleet(43, 1)[0].params;
+    let stretch = 1.15;
+    let samples = (TRACE_SAMPLES as f64 * stretch) as usize + 2;
+    let (p, _) = simulate_plant(&plant, GENERATE_STEP_S, samples).expect("plant");
+    // Sample k of the log is true time k · 10 ms · 1.15: linear interpolation of the plant.
+    let logged: Vec<f64> = (0..TRACE_SAMPLES)
+        .map(|k| {
+            let x = k as f64 * stretch;
+            let (i, f) = (x.floor() as usize, x.fract());
+            p[i] * (1.0 - f) + p[i + 1] * f
+        })
+        .collect();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(43);
+    let traces = (0..6)
+        .map(|k| {
+            let bar = sense(&logged, &mut rng).iter().map(|&c| pbm::sensor::bar_from_adc(AdcCounts(c)).0).collect();
+            (format!("release_{k:02}.csv"), pbm::TwinParams::nominal(), bar)
+        })
+        .collect();
+    let data = pbm_lab::audit::data_from_traces("clock", traces).expect("data");
+    let out = audit(&data, AuditOptions::default()).expect("audit runs");
+    let text = out.verdict_text();
+    eprintln!("{text}");
+    assert_ne!(out.cause, "none", "{text}");
+    if out.cause.contains("discharge_coefficient") || out.cause == "gas_temperature" {
+        assert!(out.alternatives.iter().any(|a| a.contains("time stamps ×") && a.contains("logger clock")), "{text}");
+    }
+}
+
 /// A spring 1.2× stiffer than documented, from a sixth independent plant (tests/data/independent3):
 /// the spring rate alone fits to the noise (1.13, its 1 σ too wide to be beyond tolerance), and
 /// `gas_temperature` with the spring rate fits no better, the gas temperature standing in for a
