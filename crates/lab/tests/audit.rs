@@ -36,6 +36,29 @@ fn run_seeds(seeds: impl Iterator<Item = u64>, count: usize) {
     assert!(misses.is_empty(), "missed hidden effects:\n{}", misses.join("\n"));
 }
 
+/// `n` releases of the pressure curve `p` (bar g) through the transducer's noise and the ADC
+/// (noise drawn from `seed`), the k-th read `shift(k)` bar high, documented as `config`.
+fn noisy_releases(
+    p: &[f64],
+    seed: u64,
+    n: usize,
+    config: pbm::TwinParams,
+    shift: impl Fn(usize) -> f64,
+) -> pbm_lab::audit::AuditData {
+    use rand_core::SeedableRng;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let traces = (0..n)
+        .map(|k| {
+            let bar = pbm_lab::generate::sense(p, &mut rng)
+                .iter()
+                .map(|&c| pbm::sensor::bar_from_adc(pbm::AdcCounts(c)).0 + shift(k))
+                .collect();
+            (format!("release_{k:02}.csv"), config, bar)
+        })
+        .collect();
+    pbm_lab::audit::data_from_traces("synthetic", traces).expect("data")
+}
+
 #[test]
 fn hidden_effect_is_named_with_magnitude_and_gain() {
     let s = first_seed(1);
@@ -150,25 +173,17 @@ fn larger_hidden_effect_sweep() {
 /// Releases of a locomotive whose documented orifice is 3 or 4 mm, with the offset hidden.
 #[test]
 fn a_sensor_offset_is_found_whatever_the_orifice() {
-    use pbm::{AdcCounts, Meters};
-    use pbm_lab::generate::{fleet, sense, simulate_plant, GENERATE_STEP_S, TRACE_SAMPLES};
-    use rand_core::SeedableRng;
+    use pbm::Meters;
+    use pbm_lab::generate::{fleet, simulate_plant, GENERATE_STEP_S, TRACE_SAMPLES};
     for (seed, orifice_mm) in [(31, 3.0), (32, 4.0)] {
         let mut documented = fleet(seed, 1)[0].params;
         documented.orifice = Meters::from_mm(orifice_mm);
         let mut plant = documented;
         plant.ext[Mechanism::SensorOffset] = 0.1;
         let (p, _) = simulate_plant(&plant, GENERATE_STEP_S, TRACE_SAMPLES).expect("plant");
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
         let mut config = pbm::TwinParams::nominal();
         config.orifice = documented.orifice;
-        let traces = (0..RELEASES_PER_CASE)
-            .map(|k| {
-                let bar = sense(&p, &mut rng).iter().map(|&c| pbm::sensor::bar_from_adc(AdcCounts(c)).0).collect();
-                (format!("release_{k:02}.csv"), config, bar)
-            })
-            .collect();
-        let data = pbm_lab::audit::data_from_traces("orifice", traces).expect("data");
+        let data = noisy_releases(&p, seed, RELEASES_PER_CASE, config, |_| 0.0);
         let out = audit(&data, AuditOptions::default()).expect("audit runs");
         eprint!("{}", out.summary());
         assert_eq!(out.cause, "sensor_offset", "orifice {orifice_mm} mm");
@@ -336,22 +351,11 @@ fn a_second_volume_is_not_named_without_its_look_alike() {
 /// without the offsets are `none`.
 #[test]
 fn releases_that_disagree_with_each_other_are_never_none() {
-    use pbm::AdcCounts;
-    use pbm_lab::generate::{fleet, sense, simulate_plant, GENERATE_STEP_S, TRACE_SAMPLES};
-    use rand_core::SeedableRng;
+    use pbm_lab::generate::{fleet, simulate_plant, GENERATE_STEP_S, TRACE_SAMPLES};
     let plant = fleet(41, 1)[0].params;
     let (p, _) = simulate_plant(&plant, GENERATE_STEP_S, TRACE_SAMPLES).expect("plant");
     for offset in [0.0, 0.05] {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(41);
-        let traces = (0..8)
-            .map(|k| {
-                let shift = if k % 2 == 0 { offset } else { -offset };
-                let bar =
-                    sense(&p, &mut rng).iter().map(|&c| pbm::sensor::bar_from_adc(AdcCounts(c)).0 + shift).collect();
-                (format!("release_{k:02}.csv"), pbm::TwinParams::nominal(), bar)
-            })
-            .collect();
-        let data = pbm_lab::audit::data_from_traces("alternating", traces).expect("data");
+        let data = noisy_releases(&p, 41, 8, pbm::TwinParams::nominal(), |k| if k % 2 == 0 { offset } else { -offset });
         let out = audit(&data, AuditOptions::default()).expect("audit runs");
         let text = out.verdict_text();
         eprintln!("± {offset} bar: {text}");
@@ -371,9 +375,7 @@ fn releases_that_disagree_with_each_other_are_never_none() {
 /// flow factor).
 #[test]
 fn a_logger_clock_off_is_listed_with_the_flow_it_looks_like() {
-    use pbm::AdcCounts;
-    use pbm_lab::generate::{fleet, sense, simulate_plant, GENERATE_STEP_S, TRACE_SAMPLES};
-    use rand_core::SeedableRng;
+    use pbm_lab::generate::{fleet, simulate_plant, GENERATE_STEP_S, TRACE_SAMPLES};
     let plant = fleet(43, 1)[0].params;
     let stretch = 1.15;
     let samples = (TRACE_SAMPLES as f64 * stretch) as usize + 2;
@@ -386,14 +388,7 @@ fn a_logger_clock_off_is_listed_with_the_flow_it_looks_like() {
             p[i] * (1.0 - f) + p[i + 1] * f
         })
         .collect();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(43);
-    let traces = (0..6)
-        .map(|k| {
-            let bar = sense(&logged, &mut rng).iter().map(|&c| pbm::sensor::bar_from_adc(AdcCounts(c)).0).collect();
-            (format!("release_{k:02}.csv"), pbm::TwinParams::nominal(), bar)
-        })
-        .collect();
-    let data = pbm_lab::audit::data_from_traces("clock", traces).expect("data");
+    let data = noisy_releases(&logged, 43, 6, pbm::TwinParams::nominal(), |_| 0.0);
     let out = audit(&data, AuditOptions::default()).expect("audit runs");
     let text = out.verdict_text();
     eprintln!("{text}");

@@ -75,6 +75,34 @@ fn sessions(n: usize) -> Vec<Timed> {
     (0..n).flat_map(|k| session(k, start_of(k))).collect()
 }
 
+/// One power-up of the locomotive (count 40 before it) with two releases, the second from tick
+/// `second_at` (10 ms ticks, `ticks` in all), a report at 1 Hz from 2.3 s into each.
+fn two_releases(ticks: u32, second_at: u32) -> Vec<Timed> {
+    let mut rep = CanReporter::new();
+    rep.set_identity(PowerUp { locomotive: LOCO, release_count: 40 });
+    rep.new_release();
+    let status =
+        StatusReport { sensor_fault: None, estimator: EstimatorState::Settled, pressure_mbar: 7_000, version: (0, 1) };
+    let mut out = Vec::new();
+    for n in 0..ticks {
+        if n == second_at {
+            rep.new_release();
+        }
+        let fault = FaultReport {
+            verdict: Verdict::Class { class: FaultClass::AirLeak, confidence_pct: 90 },
+            time_since_release_cs: (n % second_at + 1) as u16,
+            supply_mbar: 7_700,
+            leak_um: 0,
+            release_completed: false,
+        };
+        let report = (n % second_at >= 230).then_some(&fault);
+        for f in rep.step(&status, report, true).as_slice() {
+            out.push(Timed { t: 1_000_000 + u64::from(n) * 10_000, f: *f, session: 0, injected: false });
+        }
+    }
+    out
+}
+
 fn is_kind(f: &CanFrame, kind: MessageKind) -> bool {
     MessageKind::of(f) == Ok(kind)
 }
@@ -512,37 +540,13 @@ fn a_genuine_restart_after_a_refuted_impostor_is_not_flagged() {
 /// report was not current, and a session frame reported lost, on untouched traffic).
 #[test]
 fn a_session_frame_logged_before_its_heartbeat_at_a_new_release_is_not_lost() {
-    let mut rep = CanReporter::new();
-    rep.set_identity(PowerUp { locomotive: LOCO, release_count: 40 });
-    rep.new_release();
-    let status =
-        StatusReport { sensor_fault: None, estimator: EstimatorState::Settled, pressure_mbar: 7_000, version: (0, 1) };
     let mut stream: Vec<Timed> = Vec::new();
-    for n in 0..3000u32 {
-        if n == 1_050 {
-            rep.new_release();
+    // Every session frame logged before the status frame of its tick (the same stamp).
+    for e in two_releases(3_000, 1_050) {
+        match stream.iter().rposition(|p: &Timed| p.t == e.t && is_kind(&p.f, MessageKind::Status)) {
+            Some(k) if is_kind(&e.f, MessageKind::Session) => stream.insert(k, e),
+            _ => stream.push(e),
         }
-        let fault = FaultReport {
-            verdict: Verdict::Class { class: FaultClass::Normal, confidence_pct: 90 },
-            time_since_release_cs: (n % 1_050 + 1) as u16,
-            supply_mbar: 7_700,
-            leak_um: 0,
-            release_completed: false,
-        };
-        let report = (n % 1_050 >= 230).then_some(&fault);
-        let mut tick: Vec<Timed> = rep
-            .step(&status, report, true)
-            .as_slice()
-            .iter()
-            .map(|f| Timed { t: 1_000_000 + u64::from(n) * 10_000, f: *f, session: 0, injected: false })
-            .collect();
-        // Every session frame logged before the status frame of its tick.
-        if let Some(k) = tick.iter().position(|e| is_kind(&e.f, MessageKind::Session)) {
-            let session_frame = tick.remove(k);
-            let status_at = tick.iter().position(|e| is_kind(&e.f, MessageKind::Status)).unwrap_or(0);
-            tick.insert(status_at, session_frame);
-        }
-        stream.extend(tick);
     }
     let mut d = Decoder::new();
     let (mut lost, mut reports, mut current, mut flagged) = (0, 0, 0, Vec::new());
@@ -575,28 +579,7 @@ fn a_session_frame_logged_before_its_heartbeat_at_a_new_release_is_not_lost() {
 /// cannot carry that count: none of the replay's reports is current.
 #[test]
 fn a_recording_replayed_on_the_heartbeat_counters_range_is_never_current() {
-    let mut rep = CanReporter::new();
-    rep.set_identity(PowerUp { locomotive: LOCO, release_count: 40 });
-    rep.new_release();
-    let status =
-        StatusReport { sensor_fault: None, estimator: EstimatorState::Settled, pressure_mbar: 7_000, version: (0, 1) };
-    let mut genuine: Vec<Timed> = Vec::new();
-    for n in 0..4_000u32 {
-        if n == 2_000 {
-            rep.new_release();
-        }
-        let fault = FaultReport {
-            verdict: Verdict::Class { class: FaultClass::AirLeak, confidence_pct: 90 },
-            time_since_release_cs: (n % 2_000 + 1) as u16,
-            supply_mbar: 7_700,
-            leak_um: 0,
-            release_completed: false,
-        };
-        let report = (n % 2_000 >= 230).then_some(&fault);
-        for f in rep.step(&status, report, true).as_slice() {
-            genuine.push(Timed { t: 1_000_000 + u64::from(n) * 10_000, f: *f, session: 0, injected: false });
-        }
-    }
+    let genuine = two_releases(4_000, 2_000);
     for laps in [1u64, 3] {
         let mut stream = genuine.clone();
         stream.extend(genuine.iter().map(|e| Timed { t: e.t + laps * 4_096_000_000, injected: true, ..*e }));
