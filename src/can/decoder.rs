@@ -6,9 +6,10 @@
 //! session's locomotive and release number, which its CRC covers), signal values, then the
 //! freshness rules below. A frame that fails any check is flagged with a [`FrameError`] and
 //! yields no report; **a flagged frame is never accepted and moves nothing** (its phase alone is
-//! kept, as evidence of a latency step the next genuine frame must confirm), so the genuine
-//! frames after a replayed, delayed or inserted one are judged against genuine data only. The
-//! decoder never panics on any input. `can/README.md` explains the choice of scheme, what it
+//! kept, as evidence of a latency step the next genuine frame must confirm; and a session frame
+//! flagged for its count or its unit only withholds: it puts the session's count in doubt, or
+//! takes away the word of a session none vouched for), so the genuine frames after a replayed,
+//! delayed or inserted one are judged against genuine data only. The decoder never panics on any input. `can/README.md` explains the choice of scheme, what it
 //! detects and what it cannot.
 //!
 //! # Session (status frame = heartbeat, 1 Hz)
@@ -1573,8 +1574,9 @@ impl Decoder {
             if got != known {
                 // Not this session's count: a recording that carries on the session's heartbeat
                 // counter, or a corruption. The session's count is in doubt until a session
-                // frame gives it again (its reports are not current meanwhile): the one
-                // exception to "a flagged frame moves nothing", and it only withholds.
+                // frame gives it again (its reports are not current meanwhile): with a refuted
+                // session frame (`refute_unvouched`), the exception to "a flagged frame moves
+                // nothing", and it only withholds.
                 if let Some(o) = self.st.session.as_mut() {
                     o.doubt_count();
                 }
