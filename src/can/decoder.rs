@@ -9,8 +9,8 @@
 //! kept, as evidence of a latency step the next genuine frame must confirm; and a session frame
 //! flagged for its count or its unit only withholds: it puts the session's count in doubt, or
 //! takes away the word of a session none vouched for), so the genuine frames after a replayed,
-//! delayed or inserted one are judged against genuine data only. The decoder never panics on any input. `can/README.md` explains the choice of scheme, what it
-//! detects and what it cannot.
+//! delayed or inserted one are judged against genuine data only. The decoder never panics on
+//! any input. `can/README.md` explains the choice of scheme, what it detects and what it cannot.
 //!
 //! # Session (status frame = heartbeat, 1 Hz)
 //!
