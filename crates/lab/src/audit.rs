@@ -200,9 +200,20 @@ pub const ALTERNATIVE_RSS_RATIO: f64 = 1.1;
 pub const MODEL_FORM_SHARE: f64 = 0.01;
 
 /// The 1 σ `sigma` of `effect`'s magnitude `value` with the twin's model-form uncertainty
-/// ([`MODEL_FORM_SHARE`]) added in quadrature.
-fn with_model_form(effect: Mechanism, value: f64, sigma: f64) -> f64 {
-    sigma.hypot(MODEL_FORM_SHARE * (value - effect.off()).abs())
+/// ([`MODEL_FORM_SHARE`]) added in quadrature. A transducer gain adds at least the gain that the
+/// supply's tolerance spans at the documented `supply_bar_g` (uniform, 1/√3): at 0 bar g a gain
+/// reads 0 whatever it is, so beyond the shape of the rise, which is the twin's, only the plateau
+/// tells it, and there it is one with the supply (the sixth independent plant's gains 1.0153 ±
+/// 0.0009 for 1.02 and 0.9736 ± 0.0010 for 0.97, 5.2 and 3.6 σ). An offset reads at 0 bar g
+/// before the release begins, so it needs no such term.
+fn with_model_form(effect: Mechanism, value: f64, sigma: f64, supply_bar_g: f64) -> f64 {
+    let form = MODEL_FORM_SHARE * (value - effect.off()).abs();
+    let form = if effect == Mechanism::SensorGain && supply_bar_g > 0.0 {
+        form.max(SUPPLY_SPREAD_BAR / 3f64.sqrt() / supply_bar_g)
+    } else {
+        form
+    };
+    sigma.hypot(form)
 }
 
 /// Releases of one documented configuration.
@@ -2078,6 +2089,8 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
     // by that smoothness hid strong effects (n_eff 60 of 1500). The 1-σ uncertainties are
     // still inflated by the best model's leftover correlation (its covariance is too
     // optimistic when something is missing).
+    // The documented supply of the first group (the gain's model-form term, `with_model_form`).
+    let documented_supply = data.groups.first().map_or(0.0, |g| g.config.supply.0);
     let rho_noise = noise_correlation(data, DECIMATE).clamp(0.0, 0.995);
     let n_eff = (n as f64 * (1.0 - rho_noise) / (1.0 + rho_noise)).max(5.0);
     let best_all = fits.iter().map(|f| &f.1).chain([&base_lm]).min_by(|a, b| a.rss.total_cmp(&b.rss)).cloned();
@@ -2113,7 +2126,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
                 } else {
                     ((diag[g] * s2).max(0.0).sqrt()).hypot(pinned_spread_u(lm, nb, g, None)) * slope
                 };
-                eff.2 = with_model_form(eff.0, eff.1, fitted);
+                eff.2 = with_model_form(eff.0, eff.1, fitted, documented_supply);
             }
             c.flag = effects_flag(&c.effects, &lm.x[nb..]).or_else(|| worse_nmse_flag(&c, &base));
             c
@@ -2136,7 +2149,7 @@ pub fn audit(data: &AuditData, opts: AuditOptions) -> Result<AuditOutcome> {
                 let ue = lm.x[nb];
                 let sd_u = (diag[nb] * s2).max(0.0).sqrt().hypot(pinned_spread_u(lm, nb, nb, Some(w.index)));
                 let value = effect_value(e, ue);
-                (e, value, with_model_form(e, value, sd_u * effect_slope(e, ue).abs()))
+                (e, value, with_model_form(e, value, sd_u * effect_slope(e, ue).abs(), documented_supply))
             })
             .into_iter()
             .collect();
