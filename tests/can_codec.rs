@@ -5,7 +5,7 @@ use pbm::can::codec::status_link;
 use pbm::can::layout::{self, FAULT_REPORT, STATUS};
 use pbm::can::reporter::{FAULT_MIN_GAP_SAMPLES, FAULT_REPEAT_SAMPLES, STATUS_PERIOD_SAMPLES};
 use pbm::can::{
-    decode_frame, encode_fault, encode_session, encode_status, quantize_fault, CanFrame, CanReporter, Decoder,
+    decode_frame, encode_fault, encode_session, encode_status, quantize_fault, Binding, CanFrame, CanReporter, Decoder,
     FrameError, Identity, PowerUp, Report, SessionLink, StatusLink,
 };
 use pbm::report::{EstimatorState, FaultReport, NoDiagnosis, StatusReport, Verdict};
@@ -74,6 +74,8 @@ fn example_status() -> StatusReport {
 
 /// The sender identity of the examples: locomotive 5, release 3.
 const ID: Identity = Identity { locomotive: 5, release: 3 };
+/// What the fault reports of [`ID`] are sealed with (a young unit: both numbers below 64).
+const BIND: Binding = Binding::young(ID);
 
 fn link(counter: u16) -> StatusLink {
     StatusLink { counter, identity: ID, fault_count: 0 }
@@ -104,19 +106,19 @@ proptest! {
 
     #[test]
     fn fault_round_trip(r in fault_report(), counter in 0u8..16) {
-        let f = encode_fault(&r, counter, ID);
+        let f = encode_fault(&r, counter, BIND);
         prop_assert_eq!(f.raw_id(), FAULT_REPORT.raw_id());
         prop_assert!(f.is_extended() && f.is_data_frame() && f.dlc() == 8);
         let q = quantize_fault(&r);
-        prop_assert_eq!(decode_frame(&f, ID), Ok((Report::Fault(q), u16::from(counter))));
+        prop_assert_eq!(decode_frame(&f, BIND), Ok((Report::Fault(q), u16::from(counter))));
         // The CRC binds the locomotive and the release: another one's CRC fails.
         for other in [Identity { locomotive: 6, ..ID }, Identity { release: 4, ..ID }] {
-            let wrong_crc = matches!(decode_frame(&f, other), Err(FrameError::WrongCrc { .. }));
+            let wrong_crc = matches!(decode_frame(&f, Binding::young(other)), Err(FrameError::WrongCrc { .. }));
             prop_assert!(wrong_crc, "other identity {:?}", other);
         }
         // Quantisation is idempotent, exact on the grid, and within half a step inside the range.
         prop_assert_eq!(quantize_fault(&q), q);
-        prop_assert_eq!(decode_frame(&encode_fault(&q, counter, ID), ID), Ok((Report::Fault(q), u16::from(counter))));
+        prop_assert_eq!(decode_frame(&encode_fault(&q, counter, BIND), BIND), Ok((Report::Fault(q), u16::from(counter))));
         if r.time_since_release_cs <= 40_950 {
             prop_assert!(q.time_since_release_cs.abs_diff(r.time_since_release_cs) <= 5);
         } else {
@@ -136,7 +138,7 @@ proptest! {
     fn status_round_trip_is_lossless(s in status_report(), l in link_strategy()) {
         let f = encode_status(&s, l);
         prop_assert_eq!(f.raw_id(), STATUS.raw_id());
-        prop_assert_eq!(decode_frame(&f, Identity::default()), Ok((Report::Status(s), l.counter)));
+        prop_assert_eq!(decode_frame(&f, Binding::default()), Ok((Report::Status(s), l.counter)));
         prop_assert_eq!(status_link(bits_of(&f)), l);
     }
 
@@ -168,10 +170,10 @@ proptest! {
             let _ = far.receive(i64::MAX as u64 + k * 1_000_000, &f);
             if let Ok(report) = rec.result {
                 let id = rec.identity.unwrap();
-                let (again, counter) = decode_frame(&f, id).unwrap();
+                let (again, counter) = decode_frame(&f, Binding::young(id)).unwrap();
                 prop_assert_eq!(again, report);
                 let re = match report {
-                    Report::Fault(r) => encode_fault(&r, counter as u8, id),
+                    Report::Fault(r) => encode_fault(&r, counter as u8, Binding::young(id)),
                     Report::Status(s) => encode_status(&s, status_link(bits_of(&f))),
                     Report::Session(l) => encode_session(l),
                 };
@@ -186,9 +188,9 @@ proptest! {
     fn random_payloads_fail_crc_or_are_canonical(data in any::<[u8; 8]>(), fault in any::<bool>()) {
         let id = if fault { FAULT_REPORT.raw_id() } else { STATUS.raw_id() };
         let f = CanFrame::new_extended(id, &data).unwrap();
-        match decode_frame(&f, ID) {
+        match decode_frame(&f, BIND) {
             Err(FrameError::WrongCrc { .. }) | Err(FrameError::InvalidSignal { .. }) => {}
-            Ok((Report::Fault(r), c)) => prop_assert_eq!(encode_fault(&r, c as u8, ID), f),
+            Ok((Report::Fault(r), c)) => prop_assert_eq!(encode_fault(&r, c as u8, BIND), f),
             Ok((Report::Status(s), _)) => prop_assert_eq!(encode_status(&s, status_link(bits_of(&f))), f),
             Ok((Report::Session(l), _)) => prop_assert_eq!(encode_session(l), f),
             Err(e) => prop_assert!(false, "unexpected {:?}", e),
@@ -198,8 +200,8 @@ proptest! {
     /// Every single-bit flip of the data, the identifier or the length is detected.
     #[test]
     fn every_single_bit_flip_is_detected(r in fault_report(), s in status_report(), counter in 0u8..16) {
-        for f in [encode_fault(&r, counter, ID), encode_status(&s, link(u16::from(counter) * 200))] {
-            let decode_frame = |f: &CanFrame| decode_frame(f, ID);
+        for f in [encode_fault(&r, counter, BIND), encode_status(&s, link(u16::from(counter) * 200))] {
+            let decode_frame = |f: &CanFrame| decode_frame(f, BIND);
             for bit in 0..64 {
                 let bad = flip_data_bit(&f, bit);
                 prop_assert!(matches!(decode_frame(&bad), Err(FrameError::WrongCrc { .. })), "data bit {}", bit);
@@ -227,10 +229,10 @@ proptest! {
 fn id_bit_8_turns_fault_into_status_id_and_the_data_id_catches_it() {
     // 0x18FF5080 and 0x18FF5180 differ in one bit: the per-message data ID in the CRC is what
     // stops a fault report being read as a status frame.
-    let f = encode_fault(&example_fault(), 3, ID);
+    let f = encode_fault(&example_fault(), 3, BIND);
     let bad = CanFrame::new_extended(f.raw_id() ^ 0x100, f.data()).unwrap();
     assert_eq!(bad.raw_id(), STATUS.raw_id());
-    assert!(matches!(decode_frame(&bad, ID), Err(FrameError::WrongCrc { .. })));
+    assert!(matches!(decode_frame(&bad, BIND), Err(FrameError::WrongCrc { .. })));
 }
 
 /// CRC-8 SAE J1850 from the `crc` crate: independent of the core's nibble-table code.
@@ -238,10 +240,67 @@ fn reference_crc(bytes: &[u8]) -> u8 {
     crc::Crc::<u8>::new(&crc::CRC_8_SAE_J1850).checksum(bytes)
 }
 
+/// Layout 3.2: the fault report's CRC covers the fleet number's and release count's low bytes,
+/// then, when any of the numbers exceeds a byte, the fleet number's high byte and the count's
+/// bytes 1..3 (what the DBC's FaultCrc comment says, computed here with the `crc` crate). A
+/// release 64, 256, 2^16 or 2^24 releases away, or a fleet number 64 or 256 away, fails the
+/// CRC; a young unit's (numbers below 64) seals as layout 3.1 did.
+#[test]
+fn the_fault_crc_binds_the_full_fleet_number_and_release_count() {
+    let by_dbc = |b: Binding, payload: &[u8; 8]| {
+        let (f, c) = (b.fleet.to_le_bytes(), b.release_count.to_le_bytes());
+        let mut input = vec![0x50, 0x2F, f[0], c[0]];
+        if b.fleet > 0xFF || b.release_count > 0xFF {
+            input.extend([f[1], c[1], c[2], c[3]]);
+        }
+        input.extend(&payload[1..]);
+        reference_crc(&input)
+    };
+    let bindings = [
+        Binding { fleet: 5, release_count: 3 },
+        Binding { fleet: 71, release_count: 3 },
+        Binding { fleet: 5, release_count: 67 },
+        Binding { fleet: 1_071, release_count: 5_003 },
+        Binding { fleet: 4_095, release_count: u32::MAX },
+    ];
+    for b in bindings {
+        let f = encode_fault(&example_fault(), 9, b);
+        let payload: [u8; 8] = f.data().try_into().unwrap();
+        assert_eq!(payload[0], by_dbc(b, &payload), "{b:?}");
+        assert_eq!(decode_frame(&f, b).map(|(_, c)| c), Ok(9));
+        // The same 6-bit identity, another full number: flagged.
+        for other in [
+            Binding { release_count: b.release_count.wrapping_add(64), ..b },
+            Binding { release_count: b.release_count.wrapping_sub(64), ..b },
+            Binding { release_count: b.release_count.wrapping_add(256), ..b },
+            Binding { release_count: b.release_count.wrapping_add(1 << 16), ..b },
+            Binding { release_count: b.release_count.wrapping_add(1 << 24), ..b },
+            Binding { fleet: (b.fleet + 64) & 0xFFF, ..b },
+            Binding { fleet: (b.fleet + 256) & 0xFFF, ..b },
+        ] {
+            assert_eq!(other.identity(), b.identity());
+            assert!(matches!(decode_frame(&f, other), Err(FrameError::WrongCrc { .. })), "{b:?} as {other:?}");
+        }
+    }
+    // A young unit seals as layout 3.1: data ID, locomotive, release number, bytes 1..7.
+    let f = encode_fault(&example_fault(), 9, BIND);
+    let payload: [u8; 8] = f.data().try_into().unwrap();
+    let v31: Vec<u8> = [0x50, 0x2F, ID.locomotive, ID.release].iter().chain(&payload[1..]).copied().collect();
+    assert_eq!(payload[0], reference_crc(&v31));
+    // The receiver rebuilds a count from its low 6 bits within 32 releases of the one it knows.
+    let known = Binding { fleet: 1_071, release_count: 5_003 };
+    for d in -32i64..32 {
+        let c = (5_003 + d) as u32;
+        assert_eq!(known.for_release((c & 0x3F) as u8), Binding { release_count: c, ..known }, "{d}");
+    }
+    let wrap = Binding { fleet: 1, release_count: u32::MAX - 2 };
+    assert_eq!(wrap.for_release(5).release_count, 5, "across 2^32");
+}
+
 #[test]
 fn known_answer_vectors() {
     // Pinned bytes: a change of layout or CRC shows up here (and must be mirrored in the DBC).
-    let f = encode_fault(&example_fault(), 5, ID);
+    let f = encode_fault(&example_fault(), 5, BIND);
     assert_eq!(f.raw_id(), 0x18FF_5080);
     let s = encode_status(&example_status(), StatusLink { counter: 0x9A5, identity: ID, fault_count: 2 });
     assert_eq!(s.raw_id(), 0x18FF_5180);
@@ -282,7 +341,7 @@ fn known_answer_vectors() {
     let crc_input: Vec<u8> = [0x52, 0x3F].iter().chain(&payload[1..]).copied().collect();
     payload[0] = reference_crc(&crc_input);
     assert_eq!(x.data(), payload);
-    let (report, _) = pbm::can::codec::decode_frame(&x, Identity::default()).expect("decodes");
+    let (report, _) = pbm::can::codec::decode_frame(&x, Binding::default()).expect("decodes");
     assert_eq!(report, Report::Session(SessionLink { counter: 0x9A5, locomotive: 3141, release_count: 0x8765_4323 }));
     // The core's CRC equals the crate's on random inputs.
     let mut x = 0x1234_5678_9ABC_DEF0u64;
@@ -303,7 +362,7 @@ fn known_answer_vectors() {
 fn invalid_signal_values_with_good_crc_are_flagged() {
     let seal = |id: u32, data_id: u16, identity: Option<Identity>, bits: u64| {
         let mut p = bits.to_le_bytes();
-        p[0] = pbm::can::codec::e2e_crc(data_id, identity, &p);
+        p[0] = pbm::can::codec::e2e_crc(data_id, identity.map(Binding::young), &p);
         CanFrame::new_extended(id, &p).unwrap()
     };
     let f = Some(ID);
@@ -317,7 +376,7 @@ fn invalid_signal_values_with_good_crc_are_flagged() {
         (STATUS.raw_id(), 0x2F51, None, 3 << 22, "SensorHealth"),
     ];
     for (id, data_id, identity, bits, name) in cases {
-        match decode_frame(&seal(id, data_id, identity, bits), ID) {
+        match decode_frame(&seal(id, data_id, identity, bits), BIND) {
             Err(FrameError::InvalidSignal { signal, .. }) => assert_eq!(signal, name),
             other => panic!("{name}: {other:?}"),
         }
@@ -446,7 +505,7 @@ fn reporter_schedule() {
     assert!(fault_at.windows(2).all(|w| w[1] - w[0] <= FAULT_REPEAT_SAMPLES));
     // The frames carry the report as it was when sent.
     let (_, f) = sent.iter().find(|(n, f)| *n == 300 && f.raw_id() == FAULT_REPORT.raw_id()).unwrap();
-    match decode_frame(f, rep.identity()).unwrap().0 {
+    match decode_frame(f, rep.binding()).unwrap().0 {
         Report::Fault(r) => {
             assert_eq!(r.verdict, Verdict::Class { class: FaultClass::LeakAndBlock, confidence_pct: 78 });
             assert_eq!(r.time_since_release_cs, 300);
@@ -481,12 +540,12 @@ fn reporter_is_deterministic() {
 /// and the frame is report-only.)
 #[test]
 fn every_double_bit_error_is_detected() {
-    let frames = [encode_fault(&example_fault(), 7, ID), encode_status(&example_status(), link(12))];
+    let frames = [encode_fault(&example_fault(), 7, BIND), encode_status(&example_status(), link(12))];
     for f in frames {
         let base = bits_of(&f);
         let check = |mask: u64| {
             let bad = CanFrame::new(f.id(), &(base ^ mask).to_le_bytes()).unwrap();
-            assert!(matches!(decode_frame(&bad, ID), Err(FrameError::WrongCrc { .. })), "mask {mask:016X}");
+            assert!(matches!(decode_frame(&bad, BIND), Err(FrameError::WrongCrc { .. })), "mask {mask:016X}");
         };
         for a in 0..64 {
             for b in a + 1..64 {
@@ -534,7 +593,7 @@ fn heartbeat_loss_and_restart() {
     assert_eq!(r.lost_status, 4);
     // Fault reports are not heartbeats: before any status they cannot be attributed.
     let mut d = Decoder::new();
-    assert_eq!(d.receive(0, &encode_fault(&example_fault(), 0, ID)).result.unwrap_err().label(), "no_heartbeat");
+    assert_eq!(d.receive(0, &encode_fault(&example_fault(), 0, BIND)).result.unwrap_err().label(), "no_heartbeat");
     // Only accepted status frames keep the session alive: a replayed one does not.
     let mut d = Decoder::new();
     assert!(d.receive(0, &status(1, 3)).result.is_ok());
@@ -964,7 +1023,7 @@ fn a_crc_passing_release_corruption_does_not_reject_genuine_frames() {
         for raise in [1u8, 2, 17] {
             let mut s = g.clone();
             let mut l = status_link(bits_of(&s[k].1));
-            let Ok((Report::Status(st), _)) = decode_frame(&s[k].1, l.identity) else { panic!() };
+            let Ok((Report::Status(st), _)) = decode_frame(&s[k].1, Binding::young(l.identity)) else { panic!() };
             l.identity.release += raise;
             s[k].1 = encode_status(&st, l);
             let mut d = Decoder::new();
@@ -1074,7 +1133,7 @@ fn fault_crc_identity_collisions_measured() {
                 leak_um: if r & 0x100 == 0 { 0 } else { (r >> 48) as u16 % 2_000 },
                 release_completed: r & 0x200 != 0,
             };
-            encode_fault(&report, (r >> 60) as u8, ID).data().try_into().unwrap()
+            encode_fault(&report, (r >> 60) as u8, BIND).data().try_into().unwrap()
         })
         .collect();
     // On the wire: CRC over data ID, locomotive, release, bytes 1..7 (the core's, checked).
@@ -1082,7 +1141,7 @@ fn fault_crc_identity_collisions_measured() {
         let input: Vec<u8> = [0x50, 0x2F, id.locomotive, id.release].iter().chain(&p[1..]).copied().collect();
         reference_crc(&input)
     };
-    assert!(msgs.iter().all(|p| linear(ID, p) == e2e_crc(FAULT_REPORT.data_id, Some(ID), p)));
+    assert!(msgs.iter().all(|p| linear(ID, p) == e2e_crc(FAULT_REPORT.data_id, Some(BIND), p)));
     // The candidate: bytes 1..7 rotated left by 3 × (locomotive mod 16) bits first.
     let keyed = |id: Identity, p: &[u8; 8]| {
         let v = u64::from_le_bytes(*p) >> 8;
@@ -1239,7 +1298,7 @@ fn foreign_report(stream: &[(u64, CanFrame)], tau_cs: u16, counter: u8) -> CanFr
         time_since_release_cs: tau_cs,
         ..example_fault()
     };
-    encode_fault(&r, counter, stream_identity(stream))
+    encode_fault(&r, counter, Binding::young(stream_identity(stream)))
 }
 
 /// Inserts `frame` at receive time `t_us`, before the genuine frames of that time.
@@ -1381,11 +1440,11 @@ fn a_monitor_whose_counter_wrapped_is_believed_from_its_second_report() {
                 return (t, f);
             }
             if !is_status(&f) {
-                let Ok((Report::Session(link), _)) = decode_frame(&f, ID) else { unreachable!() };
+                let Ok((Report::Session(link), _)) = decode_frame(&f, BIND) else { unreachable!() };
                 return (t, encode_session(SessionLink { counter: link.counter.wrapping_sub(10) % 4096, ..link }));
             }
             let link = status_link(bits_of(&f));
-            let (report, _) = decode_frame(&f, link.identity).unwrap();
+            let (report, _) = decode_frame(&f, Binding::young(link.identity)).unwrap();
             let Report::Status(st) = report else { unreachable!() };
             (t, encode_status(&st, StatusLink { counter: link.counter.wrapping_sub(10) % 4096, ..link }))
         })
@@ -1555,7 +1614,7 @@ fn a_restart_with_a_release_jump_is_not_current() {
                 encode_status(&example_status(), StatusLink { counter: k, identity: id, fault_count: k as u8 });
             assert!(d.receive(t, &status).result.is_ok(), "{jump}: {k}");
             let report = FaultReport { time_since_release_cs: k * 100 + 30, ..example_fault() };
-            let r = d.receive(t + 300_000, &encode_fault(&report, k as u8, id));
+            let r = d.receive(t + 300_000, &encode_fault(&report, k as u8, Binding::young(id)));
             assert!(r.result.is_ok(), "{jump}: {r:?}");
             assert_eq!(!r.stale, current, "{jump}: {r:?}");
             assert_eq!(r.restart_jump, if current { 0 } else { jump }, "{jump}");

@@ -3,11 +3,11 @@
 //! five classes and broken sensors never get a brake class, neither at the close nor in any
 //! report on the bus.
 
-use pbm::can::{FrameError, Identity, Report};
+use pbm::can::{Binding, FrameError, Report};
 
 /// Decodes a frame of the pipeline (locomotive 0) in whichever release it belongs to.
 fn decode_frame(f: &pbm::can::CanFrame) -> Result<(Report, u16), FrameError> {
-    let any = |release| pbm::can::decode_frame(f, Identity { locomotive: 0, release });
+    let any = |release: u32| pbm::can::decode_frame(f, Binding { fleet: 0, release_count: release });
     (1..64).map(any).find(Result::is_ok).unwrap_or_else(|| any(0))
 }
 use pbm::pipeline::Pipeline;

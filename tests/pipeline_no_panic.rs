@@ -11,12 +11,11 @@
 //! fault is known whose evidence began before the diagnosis closed (issue 15).
 
 use pbm::can::reporter::FAULT_MIN_GAP_SAMPLES;
-use pbm::can::{FrameError, Identity, Report};
+use pbm::can::{FrameError, Report};
 
-/// Decodes a frame of the pipeline (locomotive 0) in whichever release it belongs to.
-fn decode_frame(f: &pbm::can::CanFrame) -> Result<(Report, u16), FrameError> {
-    let any = |release| pbm::can::decode_frame(f, Identity { locomotive: 0, release });
-    (1..64).map(any).find(Result::is_ok).unwrap_or_else(|| any(0))
+/// Decodes a frame `pipe` sent in its last step (sealed with its binding now).
+fn decode_frame(pipe: &Pipeline, f: &pbm::can::CanFrame) -> Result<(Report, u16), FrameError> {
+    pbm::can::decode_frame(f, pipe.binding())
 }
 use pbm::pipeline::{Pipeline, DIAGNOSIS_WINDOW_SAMPLES};
 use pbm::report::Verdict;
@@ -87,7 +86,7 @@ fn run(segments: &[(bool, Shape)]) -> usize {
 fn check_frames(pipe: &Pipeline, frames: &[pbm::can::CanFrame], sample: u64, last_fault: &mut Option<u64>) {
     assert!(frames.len() <= 3, "{} frames in one sample", frames.len());
     for f in frames {
-        let report = decode_frame(f).unwrap_or_else(|e| panic!("frame {f:?} does not decode: {e}"));
+        let report = decode_frame(pipe, f).unwrap_or_else(|e| panic!("frame {f:?} does not decode: {e}"));
         if let (Report::Fault(r), _) = report {
             if let Some(last) = last_fault.replace(sample) {
                 assert!(sample - last >= u64::from(FAULT_MIN_GAP_SAMPLES), "fault reports {last} and {sample}");
@@ -127,7 +126,8 @@ fn run_codes(samples: impl Iterator<Item = (bool, u16)>) -> usize {
                 // Closed by the valve falling or by the window, and then nothing is open.
                 assert!(!*valve_open || since_command >= DIAGNOSIS_WINDOW_SAMPLES, "closed early");
                 assert!(!pipe.diagnosing());
-                let reports = frames.iter().filter(|f| matches!(decode_frame(f), Ok((Report::Fault(_), _)))).count();
+                let reports =
+                    frames.iter().filter(|f| matches!(decode_frame(&pipe, f), Ok((Report::Fault(_), _)))).count();
                 // At once, unless a report went out less than the minimum gap ago.
                 let gap_open = last_fault.is_some_and(|l| sample - l < u64::from(FAULT_MIN_GAP_SAMPLES));
                 assert!(reports == 1 || gap_open, "the closed report is sent at once");
@@ -138,7 +138,7 @@ fn run_codes(samples: impl Iterator<Item = (bool, u16)>) -> usize {
     if let Some((_, frames)) = pipe.close() {
         closed += 1;
         assert!(frames.as_slice().len() <= 2);
-        assert!(frames.as_slice().iter().all(|f| decode_frame(f).is_ok()));
+        assert!(frames.as_slice().iter().all(|f| decode_frame(&pipe, f).is_ok()));
     }
     assert!(pipe.close().is_none(), "a second close has nothing to close");
     closed

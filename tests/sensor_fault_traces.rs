@@ -3,11 +3,11 @@
 //! in *cannot diagnose: sensor fault* of the expected kind, and none may put a brake class on
 //! the bus.
 
-use pbm::can::{FrameError, Identity, Report};
+use pbm::can::{Binding, FrameError, Report};
 
 /// Decodes a frame of the pipeline (locomotive 0) in whichever release it belongs to.
 fn decode_frame(f: &pbm::can::CanFrame) -> Result<(Report, u16), FrameError> {
-    let any = |release| pbm::can::decode_frame(f, Identity { locomotive: 0, release });
+    let any = |release: u32| pbm::can::decode_frame(f, Binding { fleet: 0, release_count: release });
     (1..64).map(any).find(Result::is_ok).unwrap_or_else(|| any(0))
 }
 use pbm::pipeline::Pipeline;

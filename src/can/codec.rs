@@ -3,13 +3,14 @@
 //! E2E scheme (in the style of AUTOSAR E2E profile 11, with SecOC-style implicit freshness):
 //! byte 0 carries a CRC-8 SAE J1850 (polynomial 0x1D, initial value 0xFF, final XOR 0xFF)
 //! computed over the message's 16-bit data ID (low byte first, not transmitted), for the fault
-//! report then the sender's [`Identity`] (locomotive, release number; not transmitted in the
-//! fault report, the status frame carries them), then data bytes 1..8. Byte 1 starts with the
-//! message's counter (4 bits in the fault report, 12 in the status frame). The data ID differs
-//! per message, so a frame that shows up under the wrong identifier fails its CRC; the identity
-//! in the fault report's CRC ties each report to one locomotive and one release. The session
-//! frame (layout 3) carries the full release count, of which the release number is the low 6
-//! bits, so a receiver tells a release from the one 64 releases earlier.
+//! report then the sender's [`Binding`] (fleet number and release count; not transmitted in the
+//! fault report), then data bytes 1..8. Byte 1 starts with the message's counter (4 bits in the
+//! fault report, 12 in the status frame). The data ID differs per message, so a frame that
+//! shows up under the wrong identifier fails its CRC; the binding in the fault report's CRC ties
+//! each report to one locomotive and one release. The session frame (layout 3) carries the full
+//! release count and fleet number, of which the status frame's release number and locomotive are
+//! the low 6 bits, so a receiver tells a release, and its reports (layout 3.2), from the one 64
+//! releases earlier.
 
 use super::frame::CanFrame;
 use super::layout::{self as l, Message, Signal};
@@ -18,8 +19,8 @@ use crate::report::{EstimatorState, FaultReport, NoDiagnosis, StatusReport, Verd
 use crate::sensor::SensorFault;
 
 /// Who sends and in which release: the locomotive's number and the release number, 6 bits
-/// each (higher bits are dropped). Sent in every status frame and bound into the CRC of every
-/// fault report.
+/// each (higher bits are dropped). Sent in every status frame; the fault report's CRC binds them
+/// in full ([`Binding`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
 pub struct Identity {
     /// The locomotive the monitor is fitted to ([`l::LOCOMOTIVE`]).
@@ -32,6 +33,50 @@ impl Identity {
     /// The identity with both numbers cut to their 6 bits.
     pub const fn masked(self) -> Self {
         Self { locomotive: self.locomotive & 0x3F, release: self.release & 0x3F }
+    }
+}
+
+/// What a fault report's CRC binds besides its payload (layout 3.2; SecOC-style implicit
+/// freshness, not transmitted in the report): the locomotive's fleet number and the full release
+/// count. Layout 3.1 bound their low 6 bits only (the status frame's [`Identity`]), so a report
+/// of the release 64 releases earlier, put in place of the genuine one at the same time since
+/// the release, passed its CRC (tenth black-box tester, O1). The status frames carry the low 6
+/// bits and the session frames the rest, so a receiver that heard the locomotive's count
+/// rebuilds the binding of every release number within 32 of it ([`Self::for_release`]).
+///
+/// The CRC covers the fleet number's and the count's low bytes where layout 3.1 had the 6-bit
+/// numbers, and their higher bytes after them when any is not zero: a unit whose numbers are
+/// both below 64 seals exactly as layout 3.1 did (recorded logs of such units stay valid).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash)]
+pub struct Binding {
+    /// The locomotive's fleet number (12 bits used; [`l::SESSION_LOCOMOTIVE`] and
+    /// [`l::SESSION_LOCOMOTIVE_HIGH`]).
+    pub fleet: u16,
+    /// The release count ([`l::RELEASE_COUNT`]; its low 6 bits are the release number).
+    pub release_count: u32,
+}
+
+impl Binding {
+    /// The identity the status frames carry for this binding (the low 6 bits of each number).
+    pub const fn identity(self) -> Identity {
+        Identity { locomotive: (self.fleet & 0x3F) as u8, release: (self.release_count & 0x3F) as u8 }
+    }
+
+    /// The binding of release number `release` (6 bits) of the same locomotive: the count within
+    /// 32 releases of this one, either way, whose low 6 bits are `release` (how SecOC rebuilds a
+    /// freshness value from its transmitted low bits).
+    pub const fn for_release(self, release: u8) -> Self {
+        let k = ((release.wrapping_sub(self.release_count as u8)) & 0x3F) as i32;
+        let release_count = self.release_count.wrapping_add_signed(if k >= 32 { k - 64 } else { k });
+        Self { fleet: self.fleet, release_count }
+    }
+
+    /// The fleet number and release count of a unit whose numbers are both below 64, the only
+    /// case in which the 6-bit identity gives them (a receiver that has not heard the
+    /// locomotive's session frame yet can check nothing else).
+    pub const fn young(identity: Identity) -> Self {
+        let id = identity.masked();
+        Self { fleet: id.locomotive as u16, release_count: id.release as u32 }
     }
 }
 
@@ -278,18 +323,21 @@ impl MessageKind {
 }
 
 /// The E2E CRC of an 8-byte payload for a data ID (byte 0 of the payload is not included);
-/// `identity` (the fault report's) goes into the CRC after the data ID, not on the bus.
-pub fn e2e_crc(data_id: u16, identity: Option<Identity>, payload: &[u8; 8]) -> u8 {
+/// `binding` (the fault report's) goes into the CRC after the data ID, not on the bus: the low
+/// bytes of the fleet number and release count, then, when any of them is not zero, their high
+/// bytes ([`Binding`]).
+pub fn e2e_crc(data_id: u16, binding: Option<Binding>, payload: &[u8; 8]) -> u8 {
     // One pass over the bytes the CRC covers, laid out in a buffer (one CRC loop in the image
     // instead of three: flash).
     let [id_lo, id_hi] = data_id.to_le_bytes();
-    let mut covered = [id_lo, id_hi, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+    let mut covered = [id_lo, id_hi, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0];
     let mut n = 2;
-    if let Some(id) = identity {
-        let id = id.masked();
-        covered[2] = id.locomotive;
-        covered[3] = id.release;
-        n = 4;
+    if let Some(b) = binding {
+        let (f, c) = (u32::from(b.fleet & 0xFFF), b.release_count);
+        n = if (f | c) >> 8 == 0 { 4 } else { 8 };
+        for (slot, v) in covered.iter_mut().skip(2).zip([f, c, f >> 8, c >> 8, c >> 16, c >> 24]) {
+            *slot = v as u8;
+        }
     }
     for (slot, &b) in covered.iter_mut().skip(n).zip(payload.iter().skip(1)) {
         *slot = b;
@@ -297,9 +345,9 @@ pub fn e2e_crc(data_id: u16, identity: Option<Identity>, payload: &[u8; 8]) -> u
     crc8_update(0xFF, covered.get(..n + 7).unwrap_or(&covered)) ^ 0xFF
 }
 
-fn seal(msg: &Message, identity: Option<Identity>, bits: u64) -> CanFrame {
+fn seal(msg: &Message, binding: Option<Binding>, bits: u64) -> CanFrame {
     let mut payload = bits.to_le_bytes();
-    payload[0] = e2e_crc(msg.data_id, identity, &payload);
+    payload[0] = e2e_crc(msg.data_id, binding, &payload);
     CanFrame::from_extended(msg.id, payload)
 }
 
@@ -310,12 +358,12 @@ fn quant(v: u16, per_lsb: u16) -> u64 {
 }
 
 /// Encodes a fault report with the given rolling counter (only its low 4 bits are used) for a
-/// sender identity (bound into the CRC).
+/// sender's fleet number and release count (bound into the CRC).
 ///
 /// Quantisation (see [`quantize_fault`]): time to 0.1 s, supply to 5 mbar, leak to 1 µm, each
 /// rounded to nearest and saturated to its signal's range.
-pub fn encode_fault(r: &FaultReport, counter: u8, identity: Identity) -> CanFrame {
-    seal_fault(fault_content_bits(r), r.time_since_release_cs, counter, identity)
+pub fn encode_fault(r: &FaultReport, counter: u8, binding: Binding) -> CanFrame {
+    seal_fault(fault_content_bits(r), r.time_since_release_cs, counter, binding)
 }
 
 /// The payload bits of a fault report's content: everything but the CRC, the counter and the
@@ -337,12 +385,12 @@ pub fn fault_content_bits(r: &FaultReport) -> u64 {
 }
 
 /// A fault report frame of the given content bits ([`fault_content_bits`]), time since release
-/// (10 ms units), counter and identity.
-pub fn seal_fault(content: u64, time_since_release_cs: u16, counter: u8, identity: Identity) -> CanFrame {
+/// (10 ms units), counter and binding.
+pub fn seal_fault(content: u64, time_since_release_cs: u16, counter: u8, binding: Binding) -> CanFrame {
     let mut bits = content;
     l::FAULT_COUNTER.put(&mut bits, u64::from(counter & 0xF));
     l::TIME_SINCE_RELEASE.put(&mut bits, quant(time_since_release_cs, l::TIME_CS_PER_LSB));
-    seal(&l::FAULT_REPORT, Some(identity), bits)
+    seal(&l::FAULT_REPORT, Some(binding), bits)
 }
 
 /// What a status frame says about the link besides the [`StatusReport`]: its heartbeat
@@ -466,11 +514,11 @@ pub fn frame_payload(frame: &impl embedded_can::Frame) -> Result<(MessageKind, u
     Ok((kind, u64::from_le_bytes(payload)))
 }
 
-/// The CRC check of a payload: `identity` is the fault report's (ignored for the status and
+/// The CRC check of a payload: `binding` is the fault report's (ignored for the status and
 /// session frames).
-pub fn check_crc(kind: MessageKind, bits: u64, identity: Identity) -> Result<(), FrameError> {
+pub fn check_crc(kind: MessageKind, bits: u64, binding: Binding) -> Result<(), FrameError> {
     let id = match kind {
-        MessageKind::Fault => Some(identity),
+        MessageKind::Fault => Some(binding),
         MessageKind::Status | MessageKind::Session => None,
     };
     let expected = e2e_crc(kind.layout().data_id, id, &bits.to_le_bytes());
@@ -501,14 +549,11 @@ pub fn status_link(bits: u64) -> StatusLink {
     }
 }
 
-/// Which message, right length, right CRC (for `identity`, when a fault report). Returns the
+/// Which message, right length, right CRC (for `binding`, when a fault report). Returns the
 /// message kind, the payload as a little-endian `u64` and the counter.
-pub fn check_frame(
-    frame: &impl embedded_can::Frame,
-    identity: Identity,
-) -> Result<(MessageKind, u64, u16), FrameError> {
+pub fn check_frame(frame: &impl embedded_can::Frame, binding: Binding) -> Result<(MessageKind, u64, u16), FrameError> {
     let (kind, bits) = frame_payload(frame)?;
-    check_crc(kind, bits, identity)?;
+    check_crc(kind, bits, binding)?;
     Ok((kind, bits, counter_of(kind, bits)))
 }
 
@@ -586,10 +631,10 @@ fn decode_status_signals(bits: u64) -> Result<StatusReport, FrameError> {
 }
 
 /// Stateless decode of one frame (no freshness check): identifier, length, CRC (a fault report
-/// against the given sender `identity`) and signals. Returns the report and its counter. Use
+/// against the given sender's `binding`) and signals. Returns the report and its counter. Use
 /// [`super::Decoder`] for a stream.
-pub fn decode_frame(frame: &impl embedded_can::Frame, identity: Identity) -> Result<(Report, u16), FrameError> {
-    let (kind, bits, counter) = check_frame(frame, identity)?;
+pub fn decode_frame(frame: &impl embedded_can::Frame, binding: Binding) -> Result<(Report, u16), FrameError> {
+    let (kind, bits, counter) = check_frame(frame, binding)?;
     decode_signals(kind, bits).map(|r| (r, counter))
 }
 

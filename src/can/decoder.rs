@@ -149,8 +149,8 @@
 //! the lost session), is accepted but stale ([`Reception::stale`]): not current.
 
 use super::codec::{
-    check_crc, decode_signals, frame_payload, session_link, status_link, FrameError, Identity, MessageKind, Report,
-    StatusLink,
+    check_crc, decode_signals, frame_payload, session_link, status_link, Binding, FrameError, Identity, MessageKind,
+    Report, StatusLink,
 };
 use super::layout::{self as l, STATUS};
 
@@ -365,10 +365,30 @@ struct Session {
     count_base: Option<(u32, u8)>,
     /// Heartbeat counter whose session frame was accepted (one per heartbeat).
     count_at: Option<u16>,
+    /// The fleet number (12 bits) the session frame that gave the count carried: with the count,
+    /// what the session's fault reports are sealed with ([`Decoder::binding`]).
+    fleet: Option<u16>,
     /// The count the session had before it was put in doubt (as `count_base`; see
     /// [`Session::doubt_count`]): the next session frame must carry exactly the count it implies
     /// before the session's reports are current again.
     count_to_confirm: Option<(u32, u8)>,
+    /// Session frames of the unit that carried the count the session has (`count_base` or
+    /// `count_to_confirm`), one after the other.
+    count_votes: u8,
+    /// A fault report passed its CRC sealed with that count (layout 3.2): the unit seals with
+    /// it, so no corruption of a session frame gave it.
+    count_proven: bool,
+    /// The count of the last session frames of the unit refused because they disagreed with the
+    /// session's count (as `count_base`), and how many of them in a row carried it. When more
+    /// carry it than carried the session's count, and at least two, and no fault report proved
+    /// the session's count (`count_proven`), it replaces it: the session's count rested on a
+    /// session frame whose count a corruption changed and the CRC missed (one frame's word
+    /// decides nothing against the frames around it). A recording that carries on the session
+    /// with its own session frames cannot do this: the live unit's reports proved its count.
+    /// Until then the fault reports whose CRC fits the rival, and not the session's count, are
+    /// accepted but not current ([`Decoder::rival_fits`]).
+    rival_count: Option<(u32, u8)>,
+    rival_votes: u8,
     /// Receive times of the last accepted fault reports, newest first (0: none): a status frame
     /// delayed by up to the latency step followed comes after the reports sent in that time,
     /// which its count does not include yet ([`OVERTAKEN_MAX`]).
@@ -377,6 +397,10 @@ struct Session {
     /// refuted (another unit's, or a count the locomotive's known count rules out): its
     /// heartbeats do not speak for the locomotive's newest release ([`Decoder::refute_unvouched`]).
     refuted: bool,
+    /// A heartbeat after which the sender sends a session frame passed without one, while this
+    /// receiver had heard no count of the locomotive and had accepted a report as a young
+    /// unit's: a unit of layout 2, whose reports are sealed so ([`Binding::young`]).
+    young_shown: bool,
 }
 
 /// A status frame's `FaultReportCount` that contradicts the chain of the accepted reports'
@@ -426,8 +450,12 @@ impl Session {
     }
 
     /// A session frame after the heartbeat with counter `counter` gave the count of `release`.
-    fn give_count(&mut self, count: u32, release: u8, counter: u16) {
+    fn give_count(&mut self, count: u32, release: u8, counter: u16, fleet: u16) {
+        let same = self.count_base.or(self.count_to_confirm).is_some_and(|b| count_at_release(b, release) == count);
+        self.count_votes = if same { self.count_votes.saturating_add(1) } else { 1 };
+        self.count_proven &= same;
         self.count_base = Some((count, release));
+        self.fleet = Some(fleet);
         self.count_at = Some(counter);
     }
 
@@ -576,6 +604,13 @@ pub struct Reception {
     /// (also [`Self::stale`]); the next accepted heartbeat decides
     /// ([`Self::unattributed_fitting`], [`Self::unattributed_rejected`]).
     pub unattributed: bool,
+    /// This fault report's CRC cannot be checked yet: the receiver has heard no release count of
+    /// its locomotive and no report of the session (a display that joined a session under way),
+    /// and it does not fit as a unit's whose fleet number and count are below 64 (layout 3.2
+    /// binds both in full; the status frames carry their low 6 bits). Accepted but not current
+    /// (also [`Self::stale`]); the next session frame, at most 10 s on, decides
+    /// ([`Self::unattributed_fitting`], [`Self::unattributed_rejected`]).
+    pub awaiting_count: bool,
     /// Unattributed fault reports (above) that this accepted status frame attributes: its
     /// locomotive and its release (or the one before), a counter its `FaultReportCount` has
     /// counted, a release that began before it.
@@ -658,6 +693,7 @@ impl Reception {
             count_corrupt: false,
             early: false,
             unattributed: false,
+            awaiting_count: false,
             unattributed_fitting: 0,
             unattributed_rejected: 0,
             delayed_stream: false,
@@ -712,6 +748,11 @@ struct Knowledge {
     /// ([`Reception::unattributed`]): receive time and payload bits.
     unattributed: [(u64, u64); UNATTRIBUTED_MAX],
     unattributed_len: u8,
+    /// Fault reports held until a session frame gives the release count their CRC binds
+    /// (first contact with a unit whose numbers are not both below 64: [`Decoder::hold_for_count`]):
+    /// receive time and payload bits.
+    awaiting_count: [(u64, u64); UNATTRIBUTED_MAX],
+    awaiting_count_len: u8,
     /// The session as it was before the last move of its clock (a re-lock, or two early
     /// heartbeats), followed at its old phase while
     /// heartbeats continue it, and until when ([`TWO_STREAMS_HOLD_US`] after the last such
@@ -785,10 +826,9 @@ fn count_ahead(known: u32, got: u32) -> Option<u32> {
 }
 
 /// The full count of release number `release`, from the count of release number `base`
-/// (`(count, base)`): within 32 releases of it either way.
-fn count_at_release((count, base): (u32, u8), release: u8) -> u32 {
-    let k = i32::from(release.wrapping_sub(base) & 0x3F);
-    count.wrapping_add_signed(if k >= 32 { k - 64 } else { k })
+/// (`(count, base)`, `base` its low 6 bits): within 32 releases of it either way.
+fn count_at_release((count, _base): (u32, u8), release: u8) -> u32 {
+    Binding { fleet: 0, release_count: count }.for_release(release).release_count
 }
 
 /// The counter of the last heartbeat from `before`'s (the last accepted) up to the one before
@@ -821,6 +861,8 @@ impl Decoder {
                 seen: 0,
                 unattributed: [(0, 0); UNATTRIBUTED_MAX],
                 unattributed_len: 0,
+                awaiting_count: [(0, 0); UNATTRIBUTED_MAX],
+                awaiting_count_len: 0,
                 before_relock: None,
                 two_streams_until: 0,
                 relock_unconfirmed_until: 0,
@@ -975,7 +1017,7 @@ impl Decoder {
     }
 
     fn status(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
-        check_crc(MessageKind::Status, bits, Identity::default())?;
+        check_crc(MessageKind::Status, bits, Binding::default())?;
         let report = decode_signals(MessageKind::Status, bits)?;
         let link = status_link(bits);
         let loco = link.identity.locomotive;
@@ -1200,9 +1242,15 @@ impl Decoder {
             relocked_us: 0,
             count_base: None,
             count_at: None,
+            fleet: None,
             count_to_confirm: None,
+            count_votes: 0,
+            count_proven: false,
+            rival_count: None,
+            rival_votes: 0,
             recent_reports_us: [0; OVERTAKEN_MAX],
             refuted: false,
+            young_shown: false,
         });
         // A tentative session rests on one frame, which may be a replay: what it says of the
         // locomotive's newest release is believed only once a second heartbeat confirms it
@@ -1226,8 +1274,14 @@ impl Decoder {
                 .count_at
                 .is_some_and(|c| c.wrapping_sub(due) % COUNTER_MOD <= link.counter.wrapping_sub(due) % COUNTER_MOD)
         };
-        rec.lost_session = last_due_session(&before, link.counter).is_some_and(|due| !given_since(due))
-            && self.newest_count(before.identity.locomotive).is_some();
+        let missed_session = last_due_session(&before, link.counter).is_some_and(|due| !given_since(due));
+        rec.lost_session = missed_session && self.newest_count(before.identity.locomotive).is_some();
+        // (And a report passed its CRC as a young unit's: a unit that seals otherwise, whose
+        // session frames are lost, is not taken for one.)
+        let young_fit = before.fault.is_some() || before.last_fault_counter.is_some();
+        if missed_session && !self.count_heard(&before) && young_fit {
+            s.young_shown = true;
+        }
         // A session frame due after the heartbeat before did not come: the count is in doubt
         // until the next one gives it (a stream stripped of its session frames is not vouched
         // for longer than one period of them).
@@ -1485,6 +1539,119 @@ impl Decoder {
         }
     }
 
+    /// Whether this receiver heard a release count of session `s`'s locomotive: the session's
+    /// own, the one it must confirm, or the locomotive's newest. Without one it knows the
+    /// binding of the session's fault reports only for a unit whose fleet number and count are
+    /// both below 64 ([`Binding::young`]).
+    fn count_heard(&self, s: &Session) -> bool {
+        s.count_base.or(s.count_to_confirm).is_some() || self.newest_count(s.identity.locomotive).is_some()
+    }
+
+    /// Whether this receiver cannot tell what session `s`'s fault reports are sealed with: no
+    /// count heard ([`Self::count_heard`]) and the unit has not shown that it sends no session
+    /// frames ([`Session::young_shown`]: a unit of layout 2, sealing as a young unit); or the
+    /// session's count rests on one session frame and no report proved it (a corruption of
+    /// that frame's count that kept its CRC: the next session frames decide,
+    /// [`Session::rival_count`]). A report whose CRC then fails is held, not flagged. (A report
+    /// that fits a young unit's binding shows nothing: one injected at first contact had the
+    /// genuine reports of an older unit flagged until the session frame, twelfth black-box
+    /// tester, F3.)
+    fn binding_unknown(&self, s: &Session) -> bool {
+        let one_frame = s.count_base.or(s.count_to_confirm).is_some() && s.count_votes <= 1 && !s.count_proven;
+        (!self.count_heard(s) && !s.young_shown) || one_frame
+    }
+
+    /// The binding (layout 3.2: fleet number and full release count) a fault report of
+    /// `id` (the session's locomotive, a release number) in session `s` is sealed with, as far
+    /// as this receiver knows: the release number gives the count within 32 releases of the
+    /// session's count (or the count it must confirm, or the locomotive's newest count heard),
+    /// the confirmed session frames the fleet number. Without a count heard: a young unit's.
+    fn binding(&self, s: &Session, id: Identity) -> Binding {
+        let loco = id.locomotive & 0x3F;
+        let newest = || self.newest_count(loco).map(|(c, _)| (c, (c & 0x3F) as u8));
+        let Some(base) = s.count_base.or(s.count_to_confirm).or_else(newest) else {
+            return Binding::young(id);
+        };
+        let fleet =
+            s.fleet.or_else(|| self.st.fleet.get(usize::from(loco)).copied().flatten()).unwrap_or(u16::from(loco));
+        Binding { fleet, release_count: count_at_release(base, id.release) }
+    }
+
+    /// Whether a fault report of `id` in session `s` is sealed with the rival count of the
+    /// unit's session frames that disagreed with the session's ([`Session::rival_count`]).
+    fn rival_fits(&self, s: &Session, bits: u64, id: Identity) -> bool {
+        s.rival_count.is_some_and(|r| {
+            let b = self.binding(s, id);
+            check_crc(MessageKind::Fault, bits, Binding { release_count: count_at_release(r, id.release), ..b }).is_ok()
+        })
+    }
+
+    /// The CRC check of a fault report of `id` in session `s` ([`Self::binding`]).
+    fn fault_crc(&self, s: &Session, bits: u64, id: Identity) -> Result<(), FrameError> {
+        check_crc(MessageKind::Fault, bits, self.binding(s, id))
+    }
+
+    /// A fault report whose CRC fits no release of its session as a young unit seals it, while
+    /// this receiver has heard no release count of its locomotive: a display that joined a
+    /// session under way, before its next session frame (at most 10 s), cannot check the CRC
+    /// of a unit whose fleet number or count is 64 or more (layout 3.2 binds both in full).
+    /// Held, accepted but not current ([`Reception::awaiting_count`]), until a session frame
+    /// gives the count and decides it ([`Self::decide_awaiting_count`]). The hold full, it is
+    /// shown not current all the same and never decided (the sender sends up to 100 reports in
+    /// the 10 s before its next session frame; flagging them flagged genuine traffic of a
+    /// display that joined late: twelfth black-box tester, F1 and F5). The status frames count
+    /// it: the chain of counters goes on from it, so that it is not reported lost.
+    fn hold_for_count(
+        &mut self,
+        mut s: Session,
+        in_lost: bool,
+        now: u64,
+        bits: u64,
+        rec: &mut Reception,
+    ) -> Result<Report, FrameError> {
+        let report = decode_signals(MessageKind::Fault, bits)?;
+        if let Some(slot) = self.st.awaiting_count.get_mut(usize::from(self.st.awaiting_count_len)) {
+            *slot = (now, bits);
+            self.st.awaiting_count_len += 1;
+        }
+        // (Only while no report is in the chain: one held after accepted reports, a corruption or
+        // an old report as likely as not, moves nothing.)
+        if s.fault.is_none() && s.last_fault_counter.is_none() {
+            let counter = l::FAULT_COUNTER.get(bits) as u8;
+            s.next_fault = (counter + 1) & 0xF;
+            if s.owed_fault == Some(counter) {
+                s.owed_fault = None;
+            }
+        }
+        if in_lost {
+            self.st.lost = Some(s);
+        } else {
+            self.st.session = Some(s);
+        }
+        rec.awaiting_count = true;
+        rec.stale = true;
+        rec.identity = Some(s.identity);
+        Ok(report)
+    }
+
+    /// A session frame gave the count of the session followed: the fault reports held for it
+    /// ([`Self::hold_for_count`]) whose CRC fits the session's release or the one before are
+    /// the monitor's (past reports, [`Reception::unattributed_fitting`]); the others are not
+    /// ([`Reception::unattributed_rejected`]).
+    fn decide_awaiting_count(&mut self, rec: &mut Reception) {
+        let Some(s) = self.st.session else { return };
+        let n = usize::from(core::mem::take(&mut self.st.awaiting_count_len));
+        let id = s.identity;
+        let before = Identity { release: id.release.wrapping_sub(1) & 0x3F, ..id };
+        for &(_, fb) in self.st.awaiting_count.iter().take(n) {
+            if self.fault_crc(&s, fb, id).is_ok() || self.fault_crc(&s, fb, before).is_ok() {
+                rec.unattributed_fitting = rec.unattributed_fitting.saturating_add(1);
+            } else {
+                rec.unattributed_rejected = rec.unattributed_rejected.saturating_add(1);
+            }
+        }
+    }
+
     /// The newest release count seen from the locomotive, and when it was last heard.
     fn newest_count(&self, locomotive: u8) -> Option<(u32, u64)> {
         self.st.newest_count.get(usize::from(locomotive & 0x3F)).copied().flatten()
@@ -1512,7 +1679,7 @@ impl Decoder {
     /// shows a genuine restart (the monitor was power-cycled while this receiver heard nothing):
     /// its reports are current again.
     fn session_frame(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
-        check_crc(MessageKind::Session, bits, Identity::default())?;
+        check_crc(MessageKind::Session, bits, Binding::default())?;
         let report = decode_signals(MessageKind::Session, bits)?;
         let link = session_link(bits);
         let candidate = self.st.restart_candidate.take();
@@ -1570,20 +1737,40 @@ impl Decoder {
         }
         let got = link.release_count;
         let implied = s.count_base.or(s.count_to_confirm).map(|base| count_at_release(base, link.release()));
+        let mut replaces = None;
         if let Some(known) = implied {
             if got != known {
                 // Not this session's count: a recording that carries on the session's heartbeat
                 // counter, or a corruption. The session's count is in doubt until a session
                 // frame gives it again (its reports are not current meanwhile): with a refuted
                 // session frame (`refute_unvouched`), the exception to "a flagged frame moves
-                // nothing", and it only withholds.
-                if let Some(o) = self.st.session.as_mut() {
-                    o.doubt_count();
+                // nothing", and it only withholds. Unless more of the unit's session frames in
+                // a row carried this count than the session's (and two at least): then the
+                // session's count was the corrupt one (`Session::rival_count`).
+                let votes = match s.rival_count {
+                    Some(r) if count_at_release(r, link.release()) == got => s.rival_votes.saturating_add(1),
+                    _ => 1,
+                };
+                if votes < 2 || votes <= s.count_votes || s.count_proven {
+                    if let Some(o) = self.st.session.as_mut() {
+                        o.doubt_count();
+                        o.rival_count = Some((got, link.release()));
+                        o.rival_votes = votes;
+                    }
+                    return Err(FrameError::WrongReleaseCount { known, got });
                 }
-                return Err(FrameError::WrongReleaseCount { known, got });
+                replaces = Some(votes);
             }
         } else if let Some((known, heard)) = self.newest_count(link.locomotive_slot()) {
             if !count_within_time(known, heard, got, now) {
+                // (Its count stays the rival of the one rebuilt from the locomotive's newest: the
+                // session's reports sealed with it are shown not current, not flagged — a restart
+                // after more releases than the time since allows, which this receiver did not
+                // hear, looks so; [`Decoder::rival_fits`].)
+                if let Some(o) = self.st.session.as_mut() {
+                    o.rival_count = Some((got, link.release()));
+                    o.rival_votes = 1;
+                }
                 self.refute_unvouched();
                 return Err(FrameError::WrongReleaseCount { known, got });
             }
@@ -1602,15 +1789,28 @@ impl Decoder {
                 s.restart_jump = 0;
             }
         }
-        s.give_count(got, link.release(), link.counter);
+        s.give_count(got, link.release(), link.counter, link.locomotive);
+        if let Some(votes) = replaces {
+            s.count_votes = votes;
+        }
+        s.rival_count = None;
+        s.rival_votes = 0;
         s.refuted = false;
         self.st.session = Some(s);
+        if replaces.is_some() {
+            // The newest count of the locomotive was the corrupt one's: the one that replaced it
+            // is the newest (else the genuine sessions after it read as behind).
+            if let Some(slot) = self.st.newest_count.get_mut(usize::from(s.identity.locomotive & 0x3F)) {
+                *slot = Some((got, now));
+            }
+        }
         if !s.tentative {
             self.note_count(s.identity.locomotive, got, now);
             if let Some(f) = self.st.fleet.get_mut(usize::from(link.locomotive_slot())) {
                 *f = Some(link.locomotive);
             }
         }
+        self.decide_awaiting_count(rec);
         rec.identity = Some(s.identity);
         Ok(report)
     }
@@ -1653,7 +1853,7 @@ impl Decoder {
         }
         self.open(at, status, true, rec);
         if let Some(s) = self.st.session.as_mut() {
-            s.give_count(got, link.release(), link.counter);
+            s.give_count(got, link.release(), link.counter, link.locomotive);
         }
         Ok(())
     }
@@ -1692,13 +1892,27 @@ impl Decoder {
         let next = Identity { release: (this.release + 1) & 0x3F, ..this };
         let may_be_next = tau_us <= now.saturating_sub(s.at_us).saturating_add(TOLERANCE_US + TAU_ROUNDING_US);
         let prev = s.release_prev.map(|(r, ..)| Identity { release: r, ..this });
-        let identity = match check_crc(MessageKind::Fault, bits, this) {
+        let mut by_rival = false;
+        let identity = match self.fault_crc(&s, bits, this) {
             Ok(()) => this,
             Err(e) => {
-                if may_be_next && check_crc(MessageKind::Fault, bits, next).is_ok() {
+                if may_be_next && self.fault_crc(&s, bits, next).is_ok() {
                     next
-                } else if let Some(p) = prev.filter(|p| check_crc(MessageKind::Fault, bits, *p).is_ok()) {
+                } else if let Some(p) = prev.filter(|p| self.fault_crc(&s, bits, *p).is_ok()) {
                     p
+                } else if let Some(id) = [Some(this), may_be_next.then_some(next)]
+                    .into_iter()
+                    .flatten()
+                    .find(|id| self.rival_fits(&s, bits, *id))
+                {
+                    by_rival = true;
+                    id
+                } else if self.binding_unknown(&s) {
+                    // (Before the unit's count is known, a fit as a young unit's at another
+                    // release is no evidence: a genuine report of an older unit fits one of the
+                    // 63 with a chance of one in four, and was dropped by the next heartbeat:
+                    // twelfth black-box tester, F7.)
+                    return self.hold_for_count(s, in_lost, now, bits, rec);
                 } else if in_lost || s.tentative {
                     // (A tentative session rests on one frame, which may be old: F3.)
                     return self.hold_unattributed(&s, now, bits, e, rec);
@@ -1968,7 +2182,10 @@ impl Decoder {
         // lost), but not current (a delayed stream, whose heartbeats are flagged, shows here).
         rec.early = track.pending;
         rec.delayed_stream = s.lag_us > MAX_LATENCY_STEP_US as i64;
-        rec.release_unconfirmed = self.count_unconfirmed(&s);
+        rec.release_unconfirmed = self.count_unconfirmed(&s) || by_rival;
+        if !by_rival && s.count_base.or(s.count_to_confirm).is_some() {
+            s.count_proven = true;
+        }
         rec.stale = missed > 0
             || track.unverified
             || s.restart_jump > 0
@@ -2023,7 +2240,7 @@ impl Decoder {
         let possible = if lost.tentative { 63 } else { (1 + silence / MIN_RELEASE_US).min(63) as u8 };
         let found = (1..=possible)
             .map(|on| Identity { release: lost.identity.release.wrapping_add(on) & 0x3F, ..lost.identity })
-            .find(|id| check_crc(MessageKind::Fault, bits, *id).is_ok());
+            .find(|id| self.fault_crc(lost, bits, *id).is_ok());
         let (Some(identity), Some(slot)) = (found, self.st.unattributed.get_mut(usize::from(self.st.unattributed_len)))
         else {
             return Err(e);
@@ -2043,26 +2260,51 @@ impl Decoder {
     /// `FaultReportCount` counted (within the reports the rate bound allows since it came),
     /// and its release began before the heartbeat. They are not fed into the fault-report
     /// chain (they came before the frame that attributes them); a display shows the ones that
-    /// fit as past reports, and drops the others.
+    /// fit as past reports, and drops the others. The reports held for the unit's count
+    /// ([`Self::hold_for_count`]) whose CRC fits so are decided the same way (a unit that sends
+    /// no session frame, layout 2); the others wait for the session frame, which alone can tell.
     fn attribute_held(&mut self, now: u64, bits: u64, rec: &mut Reception) {
         let n = usize::from(core::mem::take(&mut self.st.unattributed_len));
         let link = status_link(bits);
-        let id = link.identity.masked();
-        let before = Identity { release: id.release.wrapping_sub(1) & 0x3F, ..id };
-        let count = link.fault_count & 0xF;
-        for &(at, fb) in self.st.unattributed.iter().take(n) {
-            let crc_fits =
-                check_crc(MessageKind::Fault, fb, id).is_ok() || check_crc(MessageKind::Fault, fb, before).is_ok();
+        let Some(s) = self.st.session else { return };
+        // (CRC fits the heartbeat's release or the one before, and counted and begun in time.)
+        let fits = |d: &Self, (at, fb): (u64, u64)| {
+            let id = link.identity.masked();
+            let before = Identity { release: id.release.wrapping_sub(1) & 0x3F, ..id };
+            let crc_fits = d.fault_crc(&s, fb, id).is_ok() || d.fault_crc(&s, fb, before).is_ok();
             let counter = l::FAULT_COUNTER.get(fb) as u8;
+            let count = link.fault_count & 0xF;
             let counted = u64::from(count.wrapping_sub(1).wrapping_sub(counter) & 0xF) <= reports_possible(at, now);
             let tau_us = l::TIME_SINCE_RELEASE.get(fb) * TAU_STEP_US;
             let began_before = at <= now.saturating_add(TOLERANCE_US) && tau_us.saturating_add(now) >= at;
-            if crc_fits && counted && began_before {
+            (crc_fits, counted && began_before)
+        };
+        for &held in self.st.unattributed.iter().take(n) {
+            if fits(self, held) == (true, true) {
                 rec.unattributed_fitting = rec.unattributed_fitting.saturating_add(1);
             } else {
                 rec.unattributed_rejected = rec.unattributed_rejected.saturating_add(1);
             }
         }
+        let waiting = usize::from(self.st.awaiting_count_len);
+        let mut kept = 0;
+        for k in 0..waiting.min(UNATTRIBUTED_MAX) {
+            let held = self.st.awaiting_count[k];
+            match fits(self, held) {
+                (true, true) => rec.unattributed_fitting = rec.unattributed_fitting.saturating_add(1),
+                (true, false) => rec.unattributed_rejected = rec.unattributed_rejected.saturating_add(1),
+                // The unit sends no session frames: sealed as a young unit's, it does not fit.
+                (false, _) if s.young_shown => {
+                    rec.unattributed_rejected = rec.unattributed_rejected.saturating_add(1);
+                }
+                // (Its CRC may bind a count this receiver has not heard: the session frame tells.)
+                (false, _) => {
+                    self.st.awaiting_count[kept] = held;
+                    kept += 1;
+                }
+            }
+        }
+        self.st.awaiting_count_len = kept as u8;
     }
 
     /// Updates the fault track of the session a flagged report was judged against (the
@@ -2302,7 +2544,7 @@ impl Decoder {
     /// that phase and is accepted ([`Reception::relocked_ms`]); a flagged newer heartbeat of the
     /// session extends or starts its run.
     fn status_or_relock(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
-        if check_crc(MessageKind::Status, bits, Identity::default()).is_err() {
+        if check_crc(MessageKind::Status, bits, Binding::default()).is_err() {
             return self.status(now, bits, rec);
         }
         let link = status_link(bits);

@@ -30,8 +30,8 @@ pub mod layout;
 pub mod reporter;
 
 pub use codec::{
-    decode_frame, encode_fault, encode_session, encode_status, quantize_fault, FrameError, Identity, MessageKind,
-    Report, SessionLink, StatusLink,
+    decode_frame, encode_fault, encode_session, encode_status, quantize_fault, Binding, FrameError, Identity,
+    MessageKind, Report, SessionLink, StatusLink,
 };
 pub use decoder::{Decoder, Reception, HEARTBEAT_TIMEOUT_US, MAX_LATENCY_STEP_US, MAX_RELOCK_US, RELOCK_RUN};
 pub use frame::CanFrame;

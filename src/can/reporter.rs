@@ -21,14 +21,16 @@
 //! Freshness (see `can/README.md`): every status frame carries a 12-bit heartbeat counter, the
 //! sender's [`Identity`] (locomotive, release number) and the number of fault reports sent;
 //! every fault report carries its 4-bit counter and its time since the release command, and
-//! its CRC covers the identity. The release number counts release commands
+//! its CRC covers the fleet number and release count in full ([`Binding`]). The release number counts release commands
 //! ([`CanReporter::new_release`]) and power-ups ([`CanReporter::set_identity`]) from the value
 //! kept across power cycles, so each release and each power cycle has its own number. The
 //! session frame carries that count in full (the status frame has room for its low 6 bits
 //! only), right after the status frame of a power-up, of a new release number, and every
 //! [`SESSION_EVERY_STATUS_FRAMES`] status frames.
 
-use super::codec::{encode_session, encode_status, fault_content_bits, seal_fault, Identity, SessionLink, StatusLink};
+use super::codec::{
+    encode_session, encode_status, fault_content_bits, seal_fault, Binding, Identity, SessionLink, StatusLink,
+};
 use super::frame::CanFrame;
 use super::layout::SESSION_EVERY_STATUS_FRAMES;
 use crate::report::{FaultReport, StatusReport};
@@ -154,6 +156,12 @@ impl CanReporter {
         self.identity
     }
 
+    /// What the fault reports are sealed with now: the fleet number and the release count
+    /// (layout 3.2; the identity is their low 6 bits).
+    pub fn binding(&self) -> Binding {
+        Binding { fleet: self.fleet_number, release_count: self.release_count }
+    }
+
     /// A new release command: the release number goes up by one, and the next fault report
     /// belongs to a new diagnosis and is sent at once, even when its content equals the
     /// previous release's report.
@@ -219,7 +227,7 @@ impl CanReporter {
             if due {
                 let now = now.min(u32::from(u16::MAX)) as u16;
                 let time = report.time_since_release_cs.max(now);
-                out.push(seal_fault(key, time, self.fault_counter, self.identity));
+                out.push(seal_fault(key, time, self.fault_counter, self.binding()));
                 self.fault_counter = (self.fault_counter + 1) & 0xF;
                 self.last_fault_key = Some(key);
                 self.samples_since_fault = 0;

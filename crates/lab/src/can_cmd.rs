@@ -363,6 +363,9 @@ pub struct CabDisplay<W: Write> {
     codec_only: bool,
     /// Identity of the last status frame (codec-only mode).
     codec_identity: Identity,
+    /// Fleet number and release count of the last session frame (codec-only mode): a fault
+    /// report's CRC binds them (layout 3.2).
+    codec_binding: Option<pbm::can::Binding>,
     start_us: Option<u64>,
     /// Receive time, locomotive and release of the fault report held on the display.
     held: Option<(u64, Option<Identity>)>,
@@ -393,6 +396,7 @@ impl<W: Write> CabDisplay<W> {
             summary: DecodeSummary::default(),
             codec_only: false,
             codec_identity: Identity::default(),
+            codec_binding: None,
             start_us: None,
             held: None,
             held_before: std::collections::VecDeque::new(),
@@ -422,10 +426,23 @@ impl<W: Write> CabDisplay<W> {
     /// What the stateless codec makes of a frame (codec-only mode).
     fn codec_decode(&mut self, frame: &CanFrame) -> pbm::can::Reception {
         let result = frame_payload(frame).and_then(|(kind, bits)| {
-            pbm::can::codec::check_crc(kind, bits, self.codec_identity)?;
+            // The binding of the last session frame of the locomotive, at the release number the
+            // last status frame carried; before any: a young unit's (numbers below 64).
+            let id = self.codec_identity;
+            let binding = self
+                .codec_binding
+                .filter(|b| b.identity().locomotive == id.locomotive)
+                .map_or(pbm::can::Binding::young(id), |b| b.for_release(id.release));
+            pbm::can::codec::check_crc(kind, bits, binding)?;
             let report = decode_signals(kind, bits)?;
-            if kind == MessageKind::Status {
-                self.codec_identity = status_link(bits).identity;
+            match kind {
+                MessageKind::Status => self.codec_identity = status_link(bits).identity,
+                MessageKind::Session => {
+                    let link = pbm::can::codec::session_link(bits);
+                    self.codec_binding =
+                        Some(pbm::can::Binding { fleet: link.locomotive, release_count: link.release_count });
+                }
+                MessageKind::Fault => {}
             }
             Ok(report)
         });
@@ -523,10 +540,14 @@ impl<W: Write> CabDisplay<W> {
                 )?;
             }
         }
+        // Held reports are decided by a heartbeat (after a silence), or by a session frame (its
+        // release count, layout 3.2).
+        let decider =
+            if matches!(reception.result, Ok(Report::Session(_))) { "this session frame" } else { "this heartbeat" };
         if reception.unattributed_fitting > 0 && text {
             writeln!(
                 self.out,
-                "{} s  -- {} fault report(s) heard before this heartbeat fit it ({}): past reports, not current",
+                "{} s  -- {} fault report(s) heard before {decider} fit it ({}): past reports, not current",
                 time_text(t),
                 reception.unattributed_fitting,
                 identity_text(reception.identity)
@@ -537,7 +558,7 @@ impl<W: Write> CabDisplay<W> {
             if text {
                 writeln!(
                     self.out,
-                    "{} s  !! unattributed: {} fault report(s) heard before this heartbeat do not fit it (not the monitor's): dropped",
+                    "{} s  !! unattributed: {} fault report(s) heard before {decider} do not fit it (not the monitor's): dropped",
                     time_text(t),
                     reception.unattributed_rejected
                 )?;
@@ -603,7 +624,10 @@ impl<W: Write> CabDisplay<W> {
                 self.summary.fault_reports += 1;
                 self.summary.stale_reports += 1;
                 self.last_report_us = Some(time_us);
-                let why = if reception.unattributed {
+                let why = if reception.awaiting_count {
+                    "not current: its CRC binds the locomotive's release count, not heard yet (a display that joined a session under way); the next session frame, at most 10 s on, decides"
+                        .to_owned()
+                } else if reception.unattributed {
                     "stale: no heartbeat attributes it yet (after a silence, or a session resting on one frame); the next heartbeat decides"
                         .to_owned()
                 } else if reception.relock_unconfirmed {
@@ -1011,7 +1035,7 @@ pub fn write_codec_sweep<S: FrameSink>(mut sink: S) -> Result<(u64, S)> {
                 leak_um: leaks[(k + 2 * i) % leaks.len()],
                 release_completed: (i + k) % 2 == 1,
             };
-            sink.send(LOG_EPOCH_US + n * 10_000, &encode_fault(&r, fault_counter, Identity::default()))?;
+            sink.send(LOG_EPOCH_US + n * 10_000, &encode_fault(&r, fault_counter, pbm::can::Binding::default()))?;
             fault_counter = (fault_counter + 1) & 0xF;
             n += 1;
         }

@@ -277,7 +277,9 @@ fn restart_without_silence_is_accepted() {
         .map(|(t, f)| {
             let mut link = status_link(u64::from_le_bytes(f.data().try_into().unwrap()));
             link.identity.release += 2;
-            let Ok((pbm::can::Report::Status(s), _)) = decode_frame(f, link.identity) else { panic!() };
+            let Ok((pbm::can::Report::Status(s), _)) = decode_frame(f, pbm::can::Binding::young(link.identity)) else {
+                panic!()
+            };
             (*t, pbm::can::encode_status(&s, link))
         })
         .collect();
@@ -287,7 +289,9 @@ fn restart_without_silence_is_accepted() {
         .map(|(t, f)| {
             let mut link = status_link(u64::from_le_bytes(f.data().try_into().unwrap()));
             link.identity.release += 1;
-            let Ok((pbm::can::Report::Status(s), _)) = decode_frame(f, link.identity) else { panic!() };
+            let Ok((pbm::can::Report::Status(s), _)) = decode_frame(f, pbm::can::Binding::young(link.identity)) else {
+                panic!()
+            };
             (*t, pbm::can::encode_status(&s, link))
         })
         .collect();

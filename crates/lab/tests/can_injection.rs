@@ -595,7 +595,7 @@ fn crc_passing_foreign_reports_are_flagged_by_freshness() {
                 Err(_) => continue,
             };
             let (report, counter) = foreign[(next() as usize) % foreign.len()];
-            let f = encode_fault(&report, counter, identity);
+            let f = encode_fault(&report, counter, pbm::can::Binding::young(identity));
             let timing = if i % 2 == 0 { Timing::At } else { Timing::Between };
             let o =
                 decode(&inject_at(&log, k, f, log[k].0, timing), false, &format!("{name} crc-passing foreign at {k}"));

@@ -117,6 +117,8 @@ struct Seen {
     flagged_genuine: Vec<(u64, FrameError)>,
     flagged_injected: Vec<FrameError>,
     unconfirmed_injected: usize,
+    /// Fault reports held (not current) that a later frame decided were not the monitor's.
+    rejected_later: usize,
 }
 
 fn decode(stream: &[Timed]) -> Seen {
@@ -124,6 +126,7 @@ fn decode(stream: &[Timed]) -> Seen {
     let mut seen = Seen::default();
     for e in stream {
         let r = d.receive(e.t, &e.f);
+        seen.rejected_later += usize::from(r.unattributed_rejected);
         match (r.result, e.injected) {
             (Err(err), false) => seen.flagged_genuine.push((e.t, err)),
             (Err(err), true) => seen.flagged_injected.push(err),
@@ -167,9 +170,9 @@ fn seventy_sessions_across_the_wrap_decode_cleanly() {
 /// H2: session j (64 ≤ j < 70) replaced, heartbeats and reports and session frames alike, by
 /// the recording of session j − 64 (the same release number modulo 64), aligned at its start
 /// (and 5 ms, 30 ms early, 200 ms late). Its session frames are flagged (`wrong_release_count`:
-/// behind the count the receiver saw), and none of its reports is current; with its session
-/// frames stripped, none is current either (its count is never given). The genuine sessions
-/// around it are untouched.
+/// behind the count the receiver saw), and its reports are flagged (`wrong_crc`: their CRC
+/// binds the old count, layout 3.2) or shown not current, with or without its session frames.
+/// The genuine sessions around it are untouched.
 #[test]
 fn a_session_from_64_releases_earlier_is_never_current() {
     for j in [64usize, 66, 69] {
@@ -187,7 +190,18 @@ fn a_session_from_64_releases_earlier_is_never_current() {
                 let seen = decode(&stream);
                 let what = format!("session {j} replaced, shift {shift} µs, session frames stripped: {strip}");
                 assert_eq!(seen.current_injected, 0, "{what}: {seen:?}");
-                assert!(seen.unconfirmed_injected > 0, "{what}: {seen:?}");
+                // Layout 3.2: their CRC binds the count of session j − 64, where the receiver
+                // rebuilds that of session j from the count it heard before: each of its reports
+                // is flagged, or shown not current when it fits the count of the recording's own
+                // session frame that was refused (as a genuine restart after more unheard
+                // releases than the time allows would be).
+                let reports = stream.iter().filter(|e| e.injected && is_kind(&e.f, MessageKind::Fault)).count();
+                let wrong_crc = seen.flagged_injected.iter().filter(|e| e.label() == "wrong_crc").count();
+                assert!(
+                    reports > 5 && wrong_crc + seen.unconfirmed_injected == reports,
+                    "{what}: {wrong_crc} + {} of {reports}: {seen:?}",
+                    seen.unconfirmed_injected
+                );
                 if !strip {
                     assert!(
                         seen.flagged_injected.iter().any(|e| e.label() == "wrong_release_count"),
@@ -257,10 +271,10 @@ fn a_count_far_ahead_is_flagged_and_locks_nothing_out() {
         .iter()
         .position(|e| {
             e.session == 3
-                && matches!(decode_frame(&e.f, pbm::can::Identity::default()), Ok((Report::Session(l), _)) if l.counter == 10)
+                && matches!(decode_frame(&e.f, pbm::can::Binding::default()), Ok((Report::Session(l), _)) if l.counter == 10)
         })
         .expect("the periodic session frame");
-    let Ok((Report::Session(link), _)) = decode_frame(&stream[i].f, pbm::can::Identity::default()) else {
+    let Ok((Report::Session(link), _)) = decode_frame(&stream[i].f, pbm::can::Binding::default()) else {
         unreachable!()
     };
     stream[i] = Timed {
@@ -587,5 +601,131 @@ fn a_recording_replayed_on_the_heartbeat_counters_range_is_never_current() {
         assert!(seen.flagged_genuine.is_empty(), "{laps}: {:?}", seen.flagged_genuine);
         assert_eq!(seen.current_genuine, seen.reports_genuine, "{laps}");
         assert_eq!(seen.current_injected, 0, "{laps} × 4096 s: {seen:?}");
+    }
+}
+
+/// The tenth black-box tester's O1: a man in the middle puts, in place of a genuine fault report
+/// of session j, the report of session j − 64 (the same release number modulo 64) sent at the
+/// same time since the release, with the same counter: layout 3.1 bound only the 6-bit release
+/// number into the report's CRC, and it was shown current (8 of 10). Layout 3.2 binds the full
+/// release count, which the receiver knows from the session frames: the substitute is flagged
+/// `wrong_crc` (or, in place of the session's first report, held not current and dropped at the
+/// next session frame), and no genuine frame is.
+#[test]
+fn a_report_of_the_release_64_earlier_in_place_of_the_genuine_one_is_flagged() {
+    for j in [64usize, 66, 69] {
+        let genuine = sessions(70);
+        let old = session(j - 64, start_of(j - 64));
+        let reports: Vec<usize> = (0..genuine.len())
+            .filter(|&i| genuine[i].session == j && is_kind(&genuine[i].f, MessageKind::Fault))
+            .collect();
+        assert!(reports.len() > 5);
+        for &i in [reports[0], reports[reports.len() / 2], reports[reports.len() - 1]].iter() {
+            let offset = genuine[i].t - start_of(j);
+            let Some(sub) = old.iter().find(|e| is_kind(&e.f, MessageKind::Fault) && e.t - start_of(j - 64) == offset)
+            else {
+                panic!("session {} has no report at {offset} µs", j - 64)
+            };
+            assert_ne!(sub.f, genuine[i].f, "the substitute says something else");
+            let mut stream = genuine.clone();
+            stream[i] = Timed { f: sub.f, injected: true, ..genuine[i] };
+            let seen = decode(&stream);
+            let what = format!("session {j}, report at {offset} µs replaced");
+            assert_eq!(seen.current_injected, 0, "{what}: {seen:?}");
+            // Flagged at once; or, as the session's first report (its count then rests on the
+            // power-up's session frame alone, which a report has not proved yet), held not current
+            // and dropped at the next session frame.
+            let flagged = seen.flagged_injected.iter().map(|e| e.label()).collect::<Vec<_>>();
+            let dropped = flagged.is_empty() && seen.rejected_later == 1 && i == reports[0];
+            assert!(flagged == ["wrong_crc"] || dropped, "{what}: {seen:?}");
+            assert!(seen.flagged_genuine.is_empty(), "{what}: {:?}", seen.flagged_genuine);
+            assert_eq!(seen.current_genuine, seen.reports_genuine, "{what}");
+        }
+    }
+}
+
+/// A display that joins a session of a unit whose fleet number and release count are 64 or
+/// more, between two session frames, cannot check its fault reports' CRC (layout 3.2 binds both
+/// numbers in full; the status frames carry their low 6 bits): the reports are held, shown but
+/// not current, and the next session frame decides them: the genuine ones fit, a report sealed
+/// for another count (an old recording's) does not. From then on the reports are current.
+#[test]
+fn a_receiver_joining_an_older_unit_holds_its_reports_until_the_session_frame() {
+    let (fleet, kept) = (1_071u16, 5_000usize);
+    let live = session_of_unit(fleet, kept, 1_000_000, 30);
+    let joined = 1_000_000 + 4_500_000;
+    let next_session_frame = 1_000_000 + 10_000_000;
+    // A recording of the same unit 64 releases earlier, its report of 7.3 s put in at 7.8 s.
+    let old = session_of_unit(fleet, kept - 64, 1_000_000, 30);
+    let forged = old.iter().find(|e| is_kind(&e.f, MessageKind::Fault) && e.t == 1_000_000 + 7_300_000).map(|e| e.f);
+    let Some(forged) = forged else { panic!("no report at 7.3 s") };
+    let mut stream: Vec<Timed> = live.into_iter().filter(|e| e.t >= joined).collect();
+    stream.push(Timed { t: 1_000_000 + 7_800_000, f: forged, session: 0, injected: true });
+    stream.sort_by_key(|e| e.t);
+    let mut d = Decoder::new();
+    let (mut held, mut fitting, mut rejected, mut current_after) = (0, 0, 0, 0);
+    for e in &stream {
+        let r = d.receive(e.t, &e.f);
+        assert!(r.result.is_ok(), "{}: {r:?}", e.t);
+        assert_eq!(r.lost_fault_reports, 0, "{}: {r:?}", e.t);
+        fitting += usize::from(r.unattributed_fitting);
+        rejected += usize::from(r.unattributed_rejected);
+        if matches!(r.result, Ok(Report::Fault(_))) {
+            if e.t < next_session_frame {
+                assert!(r.awaiting_count && r.stale && !d.is_current(e.t, e.t), "{}: {r:?}", e.t);
+                held += 1;
+            } else {
+                assert!(!r.stale && d.is_current(e.t, e.t), "{}: {r:?}", e.t);
+                assert_eq!(r.release_count, Some(kept as u32 + 2), "{}", e.t);
+                current_after += 1;
+            }
+        }
+    }
+    assert!(held >= 5, "{held}");
+    assert_eq!((fitting, rejected), (held - 1, 1));
+    assert!(current_after >= 15, "{current_after}");
+}
+
+/// A corruption that changes the count of the first session frame a receiver hears and keeps its
+/// CRC (one in 256 of those that keep the low 6 bits): the session's count rested on that one
+/// frame, and every later session frame of the unit was refused against it. Layout 3.1 showed
+/// none of the session's reports current; with layout 3.2, whose report CRC binds the count,
+/// every report was flagged. Now two of the unit's session frames in a row that carry another
+/// count outvote the one that gave the session's, which no report proved: the reports are
+/// current again from the second of them (20 s), and the reports before it are shown, not
+/// current, not flagged.
+#[test]
+fn a_corrupted_count_in_the_first_session_frame_does_not_lock_out_the_session() {
+    use pbm::can::codec::{encode_session, session_link};
+    use pbm::can::layout as l;
+    for (kept, delta) in [(5usize, 64u32), (100, 64), (100, 128), (100, 0u32.wrapping_sub(64)), (3_000, 1 << 20)] {
+        let mut stream = session_of_unit(LOCO, kept, 1_000_000, 60);
+        let first = stream.iter().position(|e| is_kind(&e.f, MessageKind::Session)).expect("a session frame");
+        let bits = u64::from_le_bytes(stream[first].f.data().try_into().unwrap());
+        let mut link = session_link(bits);
+        link.release_count = link.release_count.wrapping_add(delta);
+        assert_eq!(u64::from(link.release_count & 0x3F), l::RELEASE_COUNT.get(bits) & 0x3F);
+        stream[first] = Timed { f: encode_session(link), injected: true, ..stream[first] };
+        let mut d = Decoder::new();
+        let (mut flagged, mut not_current) = (Vec::new(), 0);
+        for e in &stream {
+            let r = d.receive(e.t, &e.f);
+            match r.result {
+                Err(err) if !e.injected => flagged.push((e.t, err)),
+                Ok(Report::Fault(_)) => {
+                    let current = !r.stale && d.is_current(e.t, e.t);
+                    if e.t >= 1_000_000 + 20_500_000 {
+                        assert!(current, "count {kept} + {delta}: {}: {r:?}", e.t);
+                    } else {
+                        not_current += usize::from(!current);
+                    }
+                }
+                _ => {}
+            }
+        }
+        // The second session frame (10 s) is refused, the third (20 s) replaces the count.
+        assert_eq!(flagged.len(), 1, "count {kept} + {delta}: {flagged:?}");
+        assert_eq!(flagged[0].0, 1_000_000 + 10_000_000);
+        assert!(not_current <= 20, "count {kept} + {delta}: {not_current}");
     }
 }
