@@ -604,12 +604,13 @@ pub struct Reception {
     /// (also [`Self::stale`]); the next accepted heartbeat decides
     /// ([`Self::unattributed_fitting`], [`Self::unattributed_rejected`]).
     pub unattributed: bool,
-    /// This fault report's CRC cannot be checked yet: the receiver has heard no release count of
-    /// its locomotive and no report of the session (a display that joined a session under way),
-    /// and it does not fit as a unit's whose fleet number and count are below 64 (layout 3.2
-    /// binds both in full; the status frames carry their low 6 bits). Accepted but not current
-    /// (also [`Self::stale`]); the next session frame, at most 10 s on, decides
-    /// ([`Self::unattributed_fitting`], [`Self::unattributed_rejected`]).
+    /// This fault report's CRC cannot be checked yet, and it does not fit as a unit's whose
+    /// fleet number and count are below 64 (layout 3.2 binds both in full; the status frames
+    /// carry their low 6 bits): the receiver has heard no release count of its locomotive (a
+    /// display that joined a session under way), or the session's count rests on one session
+    /// frame that no report has proved. Accepted but not current (also [`Self::stale`]); the
+    /// next session frame, at most 10 s on, decides ([`Self::unattributed_fitting`],
+    /// [`Self::unattributed_rejected`]), or a heartbeat when the report fits a young unit's.
     pub awaiting_count: bool,
     /// Unattributed fault reports (above) that this accepted status frame attributes: its
     /// locomotive and its release (or the one before), a counter its `FaultReportCount` has
@@ -1591,10 +1592,10 @@ impl Decoder {
         check_crc(MessageKind::Fault, bits, self.binding(s, id))
     }
 
-    /// A fault report whose CRC fits no release of its session as a young unit seals it, while
-    /// this receiver has heard no release count of its locomotive: a display that joined a
-    /// session under way, before its next session frame (at most 10 s), cannot check the CRC
-    /// of a unit whose fleet number or count is 64 or more (layout 3.2 binds both in full).
+    /// A fault report whose CRC fits no release of its session while the binding is unknown
+    /// ([`Self::binding_unknown`]): a display that joined a session under way, before its next
+    /// session frame (at most 10 s), cannot check the CRC of a unit whose fleet number or count
+    /// is 64 or more (layout 3.2 binds both in full).
     /// Held, accepted but not current ([`Reception::awaiting_count`]), until a session frame
     /// gives the count and decides it ([`Self::decide_awaiting_count`]). The hold full, it is
     /// shown not current all the same and never decided (the sender sends up to 100 reports in
