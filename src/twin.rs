@@ -665,7 +665,8 @@ impl Twin {
         let upstream = if valve_open { k.supply } else { PressureQ24::ATMOSPHERE };
         if self.piston_held(upstream) {
             let steps = k.held_steps;
-            let mult = i64::from(SUBSTEPS / steps);
+            // (`checked_div`: no panic path; with 0 steps the loop does not run.)
+            let mult = i64::from(SUBSTEPS.checked_div(steps).unwrap_or(0));
             for _ in 0..steps {
                 self.pressure_step(upstream, Q::ZERO, mult, Q::ONE, Q::ZERO, Q::ZERO);
             }
@@ -1247,13 +1248,15 @@ fn spring_quad(k: &TwinCoeffs, x: MetersQ32) -> Q<i64, 12> {
 fn stribeck_exp(u: Q<i64, 16>) -> Q<i64, 16> {
     let u_q16 = u.0;
     let idx = (u_q16 >> lut::STRIBECK_STEP_SHIFT) as usize;
-    if idx + 1 >= lut::STRIBECK_EXP_Q16.len() {
+    // Beyond the table exp(-u^2) is 0 (`get`, not indexing: no panic path in the image).
+    let (Some(&a16), Some(&b16)) = (lut::STRIBECK_EXP_Q16.get(idx), lut::STRIBECK_EXP_Q16.get(idx.saturating_add(1)))
+    else {
         return Q::ZERO;
-    }
+    };
     let frac = u_q16 & ((1 << lut::STRIBECK_STEP_SHIFT) - 1);
     // The u16 table holds exp(0) = 1.0 (65536 in Q16) as 65535 (build.rs).
-    let a = if idx == 0 { 1 << 16 } else { i64::from(lut::STRIBECK_EXP_Q16[idx]) };
-    let b = i64::from(lut::STRIBECK_EXP_Q16[idx + 1]);
+    let a = if idx == 0 { 1 << 16 } else { i64::from(a16) };
+    let b = i64::from(b16);
     Q(a + ((b - a) * frac >> lut::STRIBECK_STEP_SHIFT))
 }
 

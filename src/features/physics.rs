@@ -194,8 +194,9 @@ impl PhaseTracker {
     }
 
     fn close_block(&mut self, p: f32, t: f32) {
-        let prev =
-            if self.blocks_seen > 0 { Some((self.ring_p[self.ring_head], self.ring_t[self.ring_head])) } else { None };
+        // (`get`, not indexing: no panic path in the image; the head is always in the ring.)
+        let head = self.ring_p.get(self.ring_head).zip(self.ring_t.get(self.ring_head)).map(|(&p, &t)| (p, t));
+        let prev = if self.blocks_seen > 0 { head } else { None };
         for (level, cross) in LEVELS_BAR.iter().zip(self.cross.iter_mut()) {
             if cross.is_none() && p >= *level {
                 *cross = Some(match prev {
