@@ -11,7 +11,7 @@
 //! | [`SensorFault::Noisy`] | mean absolute second difference over 1 s above [`NOISY_MEAN_ABS_D2`] | for white noise σ the mean \|x\[n\] − 2x\[n−1\] + x\[n−2\]\| is 1.95 σ, and the pressure's own second difference is below one code except at the knees; the bound is 4 × the transducer's noise |
 //! | [`SensorFault::Spikes`] | one sample far from both neighbours, in the same direction | the chamber is a first-order pneumatic volume: it cannot jump and come back within 20 ms |
 //! | [`SensorFault::Dropouts`] | an out-of-range reading followed by a valid one | a transducer does not open-circuit for a few samples and recover |
-//! | [`SensorFault::LostResolution`] | the lowest code bit never toggles over [`RESOLUTION_WINDOW`] samples although higher bits do | with 3.3 codes of noise the lowest bit toggles on about half of the samples |
+//! | [`SensorFault::LostResolution`] | a code bit never toggles over [`RESOLUTION_WINDOW`] samples although a higher bit does ([`untoggled_below_top`]): lost low bits, or a data line stuck at 0 or 1 | with 3.3 codes of noise the lowest bit toggles on about half of the samples, and a higher bit only toggles at a crossing that small steps make toggle the lower ones |
 //! | [`SensorFault::Clipped`] | the largest code seen piles up: at least [`CLIP_MIN_HITS`] hits and [`CLIP_RATIO`] × more than the code below it | a noisy plateau has a thin upper tail; an amplifier that saturates maps everything above its limit onto one code |
 //! | [`SensorFault::ImpossibleRate`] | a jump that stays (a step), or a change over 0.1 s faster than any orifice can fill | the fastest fill the circuit allows (a missing 4 mm orifice) is ≈ 8 bar/s, 27 codes a sample |
 //! | [`SensorFault::ImplausibleLevel`] | a reading below atmosphere (0.15 bar under for 5 samples, or the first three samples of a release 0.05 bar under on average), or a non-zero reading at a release command after the chamber had time to vent | the chamber is vented to atmosphere when the brake is applied |
@@ -74,6 +74,19 @@ const RING: usize = 16;
 pub const RATE_MAX_CODES: u16 = 393;
 /// Samples of the lost-resolution window.
 pub const RESOLUTION_WINDOW: u16 = 256;
+/// Code bits below the highest bit that toggled in a resolution window that never toggled:
+/// the converter lost its low bits, or a data line is stuck at 0 or 1. A higher bit `k` only
+/// toggles where the codes cross a multiple of 2^k, and a crossing by a step of at most 2^b
+/// codes toggles bit `b` too; a transducer's noise makes such steps on most samples (3.3 codes
+/// of noise toggle the lowest bit on about half of them), so a working converter leaves no gap
+/// in 256 samples. An independent tester's bit 3 stuck at 1 had been diagnosed `normal 99 %`.
+pub const fn untoggled_below_top(toggled: u16) -> u16 {
+    match u16::MAX.checked_shr(toggled.leading_zeros() + 1) {
+        Some(below_top) => !toggled & below_top,
+        None => 0,
+    }
+}
+
 /// Hits on the largest code before clipping is considered.
 pub const CLIP_MIN_HITS: u16 = 20;
 /// Separate arrivals at the largest code before clipping is considered (one long run is a
@@ -355,7 +368,7 @@ impl SignalCheck {
         if self.run >= FROZEN_RUN {
             let fault = if self.live_since_command && self.run_start > 0 {
                 // A window that lost its low bits repeats codes too: say which.
-                if self.toggled != 0 && self.toggled & 1 == 0 {
+                if untoggled_below_top(self.toggled) != 0 {
                     SensorFault::LostResolution
                 } else {
                     SensorFault::Frozen
@@ -382,7 +395,7 @@ impl SignalCheck {
             self.low_bit_live |= (p ^ c) & 1 == 1;
             self.toggle_n = self.toggle_n.saturating_add(1);
             if self.toggle_n >= RESOLUTION_WINDOW {
-                if self.toggled != 0 && self.toggled & 1 == 0 {
+                if untoggled_below_top(self.toggled) != 0 {
                     self.latch(SensorFault::LostResolution, self.toggle_start);
                     // A coarse converter holds one code for a long time on a slow signal and
                     // rounds 0 bar g below atmosphere, which the run and level checks saw first:
@@ -567,6 +580,15 @@ mod tests {
         let coarse = release(3000).map(|a| AdcCounts(a.0 & !0x3F));
         let f = run(coarse).unwrap().fault;
         assert!(matches!(f, SensorFault::LostResolution), "{f:?}");
+        // A data line stuck at 1 or at 0 (an independent tester's bit 3 stuck at 1 was
+        // diagnosed `normal 99 %`); the healthy release toggles every bit its codes span.
+        for (bit, stuck_at_one) in [(1, true), (2, false), (3, true), (4, false), (5, true)] {
+            let m = 1u16 << bit;
+            let stuck = release(6000).map(move |a| AdcCounts(if stuck_at_one { a.0 | m } else { a.0 & !m }));
+            let f = run(stuck).map(|d| d.fault);
+            assert_eq!(f, Some(SensorFault::LostResolution), "bit {bit} stuck at {}", u8::from(stuck_at_one));
+        }
+        assert_eq!((untoggled_below_top(0), untoggled_below_top(1), untoggled_below_top(0b1011)), (0, 0, 0b0100));
         let mut s = 99u32;
         let noisy = release(3000).map(move |a| {
             s = s.wrapping_mul(1_103_515_245).wrapping_add(12345);

@@ -118,7 +118,7 @@ impl core::fmt::Display for SensorFault {
             Self::Noisy => "noisy: noise far above the transducer's",
             Self::Spikes => "spikes: samples far from both neighbours",
             Self::Dropouts => "dropouts: the reading is lost and comes back",
-            Self::LostResolution => "lost resolution: low ADC bits never change",
+            Self::LostResolution => "lost resolution: an ADC bit never changes",
             Self::Clipped => "clipped: the reading piles up below its range",
             Self::ImpossibleRate => "impossible rate: faster than the pneumatics allow",
             Self::ImplausibleLevel => "implausible level: offset or gain error",
