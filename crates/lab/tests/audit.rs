@@ -399,10 +399,10 @@ fn a_logger_clock_off_is_listed_with_the_flow_it_looks_like() {
 }
 
 /// A spring 1.2× stiffer than documented, from a sixth independent plant (tests/data/independent3):
-/// the spring rate alone fits to the noise (1.13, its 1 σ too wide to be beyond tolerance), and
-/// `gas_temperature` with the spring rate fits no better, the gas temperature standing in for a
-/// discharge coefficient at its bound. The pair was named "explains the discrepancy"; it must not
-/// be named, and the verdict must say that the spring rate alone fits as well.
+/// the spring rate alone fits to the noise (1.13, its 1 σ too wide to be beyond tolerance by
+/// 2 σ), and `gas_temperature` with the spring rate fits no better, the gas temperature standing
+/// in for a discharge coefficient at its bound. The pair was named "explains the discrepancy"; it
+/// must not be named.
 #[test]
 fn a_pair_whose_part_alone_fits_as_well_is_not_named() {
     let set = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/independent3/stiff_spring");
@@ -412,7 +412,13 @@ fn a_pair_whose_part_alone_fits_as_well_is_not_named() {
     eprintln!("{text}");
     assert!(!out.cause.contains("gas_temperature"), "{text}");
     assert!(!(out.explains_all() && out.cause_parameter.is_none() && !out.cause.contains("spring")), "{text}");
-    assert!(text.contains("spring_rate alone fits as well"), "{text}");
+    // Since an eighth tester's spring 1.25× stiff (fitted 1.24 ± 0.23): the spring rate alone
+    // takes the residual to the floor, 4× below the base within tolerance, and nothing else
+    // alone fits as well, so it is named with its wide 1 σ said.
+    assert_eq!(out.cause, "spring_rate", "{text}");
+    let (_, scale, sd) = out.cause_parameter.expect("a part beyond tolerance");
+    assert!((scale - 1.2).abs() < 2.0 * sd, "{text}");
+    assert!(text.contains("the 1 σ is wide because parts at the edge of their tolerance trade with it"), "{text}");
 }
 
 /// A release cut off before its plateau (the independent tester's 3, 5 and 12 s traces were
@@ -446,6 +452,17 @@ fn a_release_cut_off_before_its_plateau_is_refused() {
 /// Noisy releases (the generator's transducer and ADC) of plants `plant(k)` for release `k`, all
 /// documented as the nominal brake.
 fn plant_set(releases: usize, seed: u64, plant: impl Fn(usize) -> pbm::TwinParams) -> pbm_lab::audit::AuditData {
+    plant_set_read(releases, seed, plant, |p| p.to_vec())
+}
+
+/// [`plant_set`] through a transducer that reads `reading(p)` of the true pressures (bar g, 100
+/// Hz) before its noise and ADC.
+fn plant_set_read(
+    releases: usize,
+    seed: u64,
+    plant: impl Fn(usize) -> pbm::TwinParams,
+    reading: impl Fn(&[f64]) -> Vec<f64>,
+) -> pbm_lab::audit::AuditData {
     use rand_core::SeedableRng;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let traces = (0..releases)
@@ -456,7 +473,7 @@ fn plant_set(releases: usize, seed: u64, plant: impl Fn(usize) -> pbm::TwinParam
                 pbm_lab::generate::TRACE_SAMPLES,
             )
             .unwrap();
-            let adc = pbm_lab::generate::sense(&p, &mut rng);
+            let adc = pbm_lab::generate::sense(&reading(&p), &mut rng);
             let bar = adc.iter().map(|&c| pbm::sensor::bar_from_adc(pbm::AdcCounts(c)).0).collect();
             (format!("r{k:02}.csv"), pbm::TwinParams::nominal(), bar)
         })
@@ -577,4 +594,81 @@ fn a_transducer_gain_is_not_named_without_the_supply_it_cannot_be_told_from() {
     if out.cause == "sensor_gain" {
         assert!(out.alternatives.iter().any(|a| a.contains("a supply of 7.4")), "{:?}", out.alternatives);
     }
+}
+
+/// A seventh independent plant (tests/data/independent4): friction 0.4× documented shows about
+/// the breakaway only (the base 1.2× the noise overall, 3.4× in its worst second), so no
+/// candidate could cut the RSS 1.5-fold, and the right fit (0.37 ± 0.04) was `unexplained`. A
+/// single that takes the whole residual and its worst second to the floor now explains it, but
+/// only when no other single fits as well: LuGre bristles 10× softer are fitted by friction 0.54×
+/// and by a small droop alike, and neither may be named.
+#[test]
+fn a_local_discrepancy_is_named_only_when_one_cause_takes_it_to_the_floor() {
+    let data = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/independent4");
+    let (out, skipped) = audit_dir(&data.join("part_fric_040")).expect("audit");
+    assert!(skipped.is_empty(), "{skipped}");
+    let text = out.verdict_text();
+    eprintln!("{text}");
+    let (name, factor, sd) = out.cause_parameter.expect("a part beyond tolerance is named");
+    assert!(name == "friction" && out.explains_all(), "{text}");
+    assert!((factor - 0.4).abs() < 2.0 * sd, "{text}");
+    let (out, _) = audit_dir(&data.join("c_s0_10")).expect("audit");
+    let text = out.verdict_text();
+    eprintln!("{text}");
+    assert_eq!(out.cause, "unexplained", "{text}");
+    assert!(text.contains("fits as well, and this close to the noise the data cannot tell them apart"), "{text}");
+}
+
+/// A transducer hysteresis (a seventh independent tester's: −0.05 bar while the pressure rises,
+/// fading at rest) was named a −0.050 bar `sensor_offset` "explaining the discrepancy", with
+/// nothing said: within twice the supply's tolerance the plateau cannot confirm an offset. An
+/// offset that small is named with the reading error it cannot be told from; a large one is not.
+#[test]
+fn a_small_offset_is_named_with_the_hysteresis_it_cannot_be_told_from() {
+    let options = AuditOptions { pairs: false, ..AuditOptions::default() };
+    let nominal = pbm::TwinParams::nominal();
+    let hysteresis = |p: &[f64]| -> Vec<f64> {
+        (0..p.len())
+            .map(|i| {
+                let rate = (p[(i + 1).min(p.len() - 1)] - p[i.saturating_sub(1)]) / 0.02;
+                p[i] - 0.05 * (rate / 0.2).tanh()
+            })
+            .collect()
+    };
+    let out = audit(&plant_set_read(8, 61, |_| nominal, hysteresis), options).expect("audit");
+    let text = out.verdict_text();
+    eprintln!("hysteresis: {text}");
+    if out.cause.contains("sensor_offset") {
+        assert!(text.contains("fades at rest"), "{text}");
+    }
+    for (offset, look_alike) in [(-0.05, true), (-0.3, false)] {
+        let out = audit(&plant_set_read(8, 62, |_| nominal, |p| p.iter().map(|v| v + offset).collect()), options)
+            .expect("audit");
+        let text = out.verdict_text();
+        eprintln!("offset {offset} bar: {text}");
+        assert_eq!(out.cause, "sensor_offset", "{text}");
+        assert_eq!(text.contains("fades at rest"), look_alike, "{text}");
+    }
+}
+
+/// A healthy brake logged from 0.3 s before the valve command (an eighth independent tester's
+/// trigger offsets of 0.15–0.6 s) is a transport delay to the data; it was named one,
+/// "explaining the discrepancy", with nothing said of the trigger. The early trigger is listed.
+#[test]
+fn a_transport_delay_is_named_with_the_early_trigger_it_cannot_be_told_from() {
+    let options = AuditOptions { pairs: false, ..AuditOptions::default() };
+    let nominal = pbm::TwinParams::nominal();
+    let early =
+        |p: &[f64]| -> Vec<f64> { std::iter::repeat_n(0.0, 30).chain(p.iter().copied()).take(p.len()).collect() };
+    let out = audit(&plant_set_read(8, 63, |_| nominal, early), options).expect("audit");
+    let text = out.verdict_text();
+    eprintln!("early trigger: {text}");
+    assert_eq!(out.cause, "transport_delay", "{text}");
+    assert!((out.magnitude() - 0.3).abs() < 0.02, "{text}");
+    assert!(
+        out.alternatives
+            .iter()
+            .any(|a| a.contains("a trace that starts 0.3") && a.contains("before the release command")),
+        "{text}"
+    );
 }

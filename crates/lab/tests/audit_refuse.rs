@@ -357,3 +357,79 @@ fn a_release_from_a_chamber_not_vented_is_refused() {
     let msg = no_usable_release(&dir);
     assert!(msg.contains("no release from a vented chamber: the pressure reads 3.0"), "{msg}");
 }
+
+/// A sine wave from 0 to 7.7 bar g and a release vented again at 40 s (an independent tester's
+/// garbage, audited as `unexplained` at ≈ 1250×) are no single release; a release whose supply
+/// is cut for a few seconds, or whose regulator hunts, still is.
+#[test]
+fn a_pressure_that_falls_back_by_half_its_rise_is_no_release() {
+    use pbm::sensor::{adc_from_bar, bar_from_adc};
+    use pbm::units::BarG;
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = generated(tmp.path(), 2, 41, Extensions::NONE);
+    let manifest = std::fs::read_to_string(dir.join("manifest.csv")).unwrap();
+    let files: Vec<String> = manifest.lines().skip(1).filter_map(|l| l.split(',').next().map(str::to_owned)).collect();
+    // Rewrites every trace's ADC codes by `f(t, p)` on its pressure p (bar g).
+    let rewrite = |f: &dyn Fn(f64, f64) -> f64| {
+        for file in &files {
+            let text = std::fs::read_to_string(dir.join(file)).unwrap();
+            let mut out = String::new();
+            for line in text.lines() {
+                match line.split_once(',').and_then(|(t, a)| Some((t.parse::<f64>().ok()?, a.parse::<u16>().ok()?))) {
+                    Some((t, adc)) => {
+                        let p = f(t, bar_from_adc(pbm::AdcCounts(adc)).0);
+                        let _ = writeln!(out, "{t:.2},{}", adc_from_bar(BarG(p)).0);
+                    }
+                    None => {
+                        let _ = writeln!(out, "{line}");
+                    }
+                }
+            }
+            std::fs::write(dir.join(file), out).unwrap();
+        }
+    };
+    let original: Vec<String> = files.iter().map(|f| std::fs::read_to_string(dir.join(f)).unwrap()).collect();
+    let restore = || {
+        for (f, text) in files.iter().zip(&original) {
+            std::fs::write(dir.join(f), text).unwrap();
+        }
+    };
+    // Vented at 40 s with a 2 s time constant (the transducer's noise stays on the codes).
+    let plateau = 7.7;
+    rewrite(&|t, p| if t > 40.0 { p - plateau * (1.0 - (-(t - 40.0) / 2.0).exp()) } else { p });
+    let msg = no_usable_release(&dir);
+    assert!(msg.contains("no single release: the pressure reaches 7.") && msg.contains("by t = 4"), "{msg}");
+    // A sine wave of 20 s period from 0 to 7.7 bar g, with the trace's noise from its plateau.
+    restore();
+    rewrite(&|t, p| {
+        let noise = if t > 40.0 { p - plateau } else { 0.0 };
+        3.85 - 3.85 * (2.0 * std::f64::consts::PI * t / 20.0).cos() + noise
+    });
+    let msg = no_usable_release(&dir);
+    assert!(msg.contains("no single release"), "{msg}");
+    // A regulator hunting by ± 0.4 bar and a supply that holds its pressure are still releases.
+    restore();
+    rewrite(&|t, p| if t > 25.0 { p + 0.4 * (2.0 * std::f64::consts::PI * 0.3 * t).sin() } else { p });
+    let (data, skipped) = load_dataset(&dir).expect("a hunting regulator is a release");
+    assert_eq!(
+        (data.groups.iter().map(|g| g.traces.len()).sum::<usize>(), skipped.len()),
+        (files.len(), 0),
+        "{skipped}"
+    );
+}
+
+/// An ADC data line stuck at 1 (bit 3, a seventh independent tester's healthy releases,
+/// tests/data/independent4/stuck_bit3) was diagnosed `normal 99 %` by the monitor and audited;
+/// it is a sensor fault of the core's plausibility check, which the audit refuses on raw codes.
+#[test]
+fn a_stuck_adc_bit_is_a_sensor_fault() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/independent4/stuck_bit3");
+    let msg = no_usable_release(&dir);
+    assert_eq!(msg.matches("sensor fault `lost_resolution`").count(), 2, "{msg}");
+    let manifest = std::fs::read_to_string(dir.join("manifest.csv")).unwrap();
+    for file in manifest.lines().skip(1).filter_map(|l| l.split(',').next()) {
+        let trace = pbm_io::trace::read_trace(&dir.join(file)).unwrap();
+        let fault = pbm_lab::audit::signal_destroying_fault(&trace).unwrap();
+        assert_eq!(fault.map(|f| f.1), Some(pbm::sensor::SensorFault::LostResolution), "{file}");
+    }
+}
