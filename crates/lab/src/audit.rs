@@ -74,7 +74,14 @@
 //!    alone fits as well does not need the other: it is said, not named); a
 //!    parameter beyond tolerance is preferred to a mechanism only when its RSS is
 //!    [`ALTERNATIVE_RSS_RATIO`] lower, and candidates within that ratio of the chosen one are
-//!    listed as alternatives the data cannot tell apart. Otherwise `none` (the base residual is at
+//!    listed as alternatives the data cannot tell apart. Two exceptions: a base at the floor
+//!    overall but not in its worst second (a local discrepancy) is explained by a single that
+//!    takes both to the floor when no other single fits within [`ALTERNATIVE_RSS_RATIO`]; and a
+//!    part alone that takes the residual to the floor, far below the base and with no single
+//!    fitting as well, is established beyond tolerance by that likelihood ratio even when its 1 σ
+//!    is wide. Look-alikes the data cannot exclude are listed with the cause (an early trigger
+//!    for a delay, a reading error that fades at rest for a small offset, a friction along the
+//!    stroke for a spring). Otherwise `none` (the base residual is at
 //!    the noise floor, [`NOISE_FLOOR_RATIO`]) or `unexplained`. The magnitude's uncertainty is
 //!    the 1-σ of the Gauss–Newton covariance s² (JᵀJ)⁻¹ at the optimum, inflated by the best
 //!    model's leftover residual correlation, with the twin's model-form uncertainty
