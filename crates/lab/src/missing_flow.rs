@@ -50,7 +50,7 @@ use pbm::params::{circle_area, GAS_CONSTANT, KAPPA, TEMPERATURE_K};
 use pbm::twin::SAMPLE_PERIOD_S;
 use pbm::TwinParams;
 
-use crate::reference::{orifice_mass_flow, piston_under_pressure};
+use crate::reference::{orifice_mass_flow, piston_under_pressure, P0};
 
 /// Half-width of the local regression that smooths and differentiates the pressure, samples.
 pub const HALF_WINDOW: usize = 10;
@@ -79,8 +79,6 @@ pub const TERM_BIC: f64 = 10.0;
 pub const MIN_TERM_SHARE: f64 = 0.1;
 /// Share of the excess χ² the chosen terms must explain to describe the missing flow.
 pub const EXPLAINED_ENOUGH: f64 = 0.7;
-/// Atmospheric pressure, Pa.
-const P0: f64 = 1.0e5;
 
 /// Phases of a release, from the travel.
 pub const PHASES: [&str; 3] = ["filling at rest", "stroke", "end stop / plateau"];

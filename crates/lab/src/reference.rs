@@ -20,7 +20,7 @@ use pbm::{ParamError, TwinParams};
 /// Integration step of the reference, seconds.
 pub const REFERENCE_STEP_S: f64 = 20e-6;
 /// Atmospheric pressure, Pa.
-const P0: f64 = 1.0e5;
+pub const P0: f64 = 1.0e5;
 
 /// Mass flow (kg/s) through an orifice of area `area` from `pu` to `pd` (Pa abs), SPEC §2;
 /// negative when `pd > pu`.
