@@ -1845,18 +1845,46 @@ impl Decoder {
         if !(0..=SESSION_LATE_MAX_US as i64).contains(&diff(now, at)) {
             return Err(FrameError::Untimely { off_ms: ms(diff(now, at)) });
         }
-        let Some((known, heard)) = self.newest_count(loco) else {
+        // No count heard: a unit that showed it is of layout 2 (it sends no session frames and
+        // seals its reports as a young unit, `Session::young_shown`) is taken at its release
+        // number as its count, the count of a unit whose numbers are below 64. A layout-3.2 unit
+        // fitted in its place after a stop, its release number reading as behind, was refused
+        // frame by frame (thirteenth black-box tester: 889 genuine frames of a trial flagged).
+        // Its session opens; its next session frame gives the count, as at first contact, since
+        // no count of the locomotive is known.
+        let young = || {
+            self.st
+                .lost
+                .filter(|p| p.young_shown && p.identity.locomotive == loco)
+                .map(|p| (u32::from(self.st.newest_release[usize::from(loco)]), p.at_us))
+        };
+        let Some((known, heard)) = self.newest_count(loco).or_else(young) else {
             return Err(FrameError::NoHeartbeat);
         };
         let got = link.release_count;
-        if got == known || !count_within_time(known, heard, got, now) {
+        if got == known || count_ahead(known, got).is_none() {
             return Err(FrameError::WrongReleaseCount { known, got });
         }
         self.open(at, status, true, rec);
-        if let Some(s) = self.st.session.as_mut() {
-            s.give_count(got, link.release(), link.counter, link.locomotive);
+        if count_within_time(known, heard, got, now) {
+            if let Some(s) = self.st.session.as_mut() {
+                s.give_count(got, link.release(), link.counter, link.locomotive);
+            }
+            return Ok(());
         }
-        Ok(())
+        // Newer than any count seen, but further on than the time since allows: another unit
+        // (a spare fitted while this receiver heard nothing), or a corruption. The session opens
+        // refuted, as one whose session frame carried that count while its release number read
+        // as newer does: its frames are shown, not current, its reports sealed with that count
+        // too ([`Session::rival_count`]). Before, every later frame of a spare whose release
+        // number read as behind was flagged (a thirteenth black-box tester: 901 genuine frames
+        // of one unit swap).
+        if let Some(s) = self.st.session.as_mut() {
+            s.rival_count = Some((got, link.release()));
+            s.rival_votes = 1;
+        }
+        self.refute_unvouched();
+        Err(FrameError::WrongReleaseCount { known, got })
     }
 
     fn fault(&mut self, now: u64, bits: u64, rec: &mut Reception) -> Result<Report, FrameError> {
@@ -2431,8 +2459,12 @@ fn phase_run(s: &Session, now: u64, link: &StatusLink) -> Option<(PhaseRun, i64)
     }
     // Back at the phase the session had before it re-locked (a gateway latency that ended):
     // the phase the session was first locked onto, at once.
+    // Only a frame off the session clock: one on time at it is the session going on (a
+    // thirteenth black-box tester's gateway latency that began and ended, with 1 ms of time-stamp
+    // jitter, left the session a few ms off its first phase, and every later heartbeat, on time,
+    // "re-locked" onto it, its reports never current again).
     let tol = i64::try_from(TOLERANCE_US + drift(span)).unwrap_or(i64::MAX);
-    if s.relocked_us != 0 && shift.saturating_add(s.relocked_us).abs() <= tol {
+    if s.relocked_us != 0 && shift.abs() > tol && shift.saturating_add(s.relocked_us).abs() <= tol {
         return Some((PhaseRun { counter: link.counter, at_us: now, release, count, len: RELOCK_RUN }, shift));
     }
     // A frame not newer than the run's last (a copy, a replay) neither extends nor breaks it

@@ -289,7 +289,7 @@ pub fn status_line(time_us: u64, id: Option<Identity>, s: &StatusReport) -> Stri
 
 /// Why a status frame or fault report of a refuted session ([`pbm::can::Reception::refuted`])
 /// is not shown as the locomotive's live state.
-const REFUTED_TEXT: &str = "not current: this session's session frame was refuted (another unit with this number modulo 64, or an old recording) and none of the locomotive's own has vouched for it";
+const REFUTED_TEXT: &str = "not current: this session's session frame was refuted (another unit with this number modulo 64, an old recording, or a count further on than the time since allows: a replaced unit or a corruption) and none of the locomotive's own has vouched for it";
 
 /// Header of the CSV output of `can decode --format csv`.
 pub const CSV_HEADER: &str = "time_us,id,data,message,counter,Diagnosis,Confidence,NoDiagnosisReason,\

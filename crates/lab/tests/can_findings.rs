@@ -329,6 +329,26 @@ fn r2_f1f_a_latency_that_ends_re_locks() {
     assert!(o.stale.iter().all(|&l| l < relocks[0].0) && o.withdrawn.is_empty(), "{o:?}");
 }
 
+/// Thirteenth black-box tester (2026-11-28, `latency_bump_then_jitter`, seed 13006; fleet
+/// number 2595, count offset 3 172 517 325): a gateway delays every frame by 328 ms for 5.4 s (a
+/// latency that begins and ends) on a bus whose time stamps jitter by up to 12 ms. The receiver
+/// re-locked onto the latency and back, and then, its session left a few ms off its first
+/// phase, "re-locked" at every later heartbeat although each came on time: the 480 genuine
+/// reports of the remaining 330 s were shown not current. Now the two re-locks are the only
+/// ones, only delayed frames are flagged, and no report after the second re-lock's heartbeat
+/// period is stale.
+#[test]
+fn r13_a_latency_that_begins_and_ends_under_jitter_re_locks_twice_only() {
+    let name = "R13_latency_bump_and_jitter";
+    let (o, relocks) = decode_relocks(&format!("{name}.log"));
+    let steps: Vec<i32> = relocks.iter().map(|r| r.1).collect();
+    assert!(matches!(steps[..], [up, down] if (up - 328).abs() <= 15 && (down + 331).abs() <= 15), "{relocks:?}");
+    let tags = tagged(name);
+    assert!(o.flagged.iter().all(|&l| tags[l - 1].2 == "i"), "genuine flagged: {o:?}");
+    assert!(o.stale.iter().all(|&l| l < relocks[1].0) && o.withdrawn.is_empty(), "{o:?}");
+    assert!(o.reports.len() > 480, "{o:?}");
+}
+
 /// F1d: a 1.23 s gateway delay over the first 10 s of a monitor's session (one of several
 /// restarted monitors in the log) refused the rest of that session. Now only frames of the
 /// delayed window are flagged: the session opened on the delayed frames, and when the delay
@@ -555,4 +575,71 @@ fn a_young_fitting_report_at_first_contact_gets_no_genuine_report_flagged() {
     }
     assert!(flagged.is_empty(), "{flagged:?}");
     assert!(fitting >= 1, "{fitting}");
+}
+
+/// Thirteenth black-box tester (2026-11-28, `unit_swap_higher_count`, seed 13002): a
+/// locomotive's unit (fleet number 653, release count 328) is swapped during a 55 s stop for a
+/// spare whose count is 3236 further on. Its release number reads as behind (44 after 8), and
+/// its count is further on than the time since allows. Every later frame of the spare was
+/// flagged (901 genuine frames: `wrong_release`, `wrong_crc`). A receiver cannot tell a replaced
+/// unit from a corruption, so the spare is not vouched for; but its session now opens refuted,
+/// as that of a spare whose release number reads as newer does: its status frames and reports
+/// are shown, none current, and only its first status frame and its session frames are flagged.
+#[test]
+fn r13_a_spare_unit_far_ahead_is_shown_not_current_rather_than_flagged() {
+    let frames = tagged("R13_spare_unit_count_far_ahead_reads_behind");
+    let swap = frames.windows(2).position(|w| w[1].0 > w[0].0 + 20_000_000).expect("the stop") + 1;
+    let mut d = Decoder::new();
+    let (mut before_current, mut spare_reports, mut spare_status_flagged) = (0, 0, 0);
+    for (i, (time_us, frame, tag)) in frames.iter().enumerate() {
+        assert_eq!(tag, "g");
+        let id = frame.id();
+        let r = d.receive(*time_us, frame);
+        let line = i + 1;
+        if i < swap {
+            assert!(r.result.is_ok(), "line {line} (first unit): {r:?}");
+            before_current += usize::from(matches!(r.result, Ok(Report::Fault(_))) && !r.stale);
+        } else if id == embedded_can::Id::Extended(l::FAULT_REPORT.id) {
+            assert!(matches!(r.result, Ok(Report::Fault(_))), "line {line} (spare's report): {r:?}");
+            assert!(r.stale && r.refuted, "line {line} (spare's report) shown current: {r:?}");
+            spare_reports += 1;
+        } else if id == embedded_can::Id::Extended(l::STATUS.id) {
+            spare_status_flagged += usize::from(r.result.is_err());
+        } else {
+            assert!(r.result.is_err() || r.refuted, "line {line} (spare's session frame): {r:?}");
+        }
+    }
+    assert!(before_current > 100, "{before_current}");
+    assert_eq!(spare_reports, 494);
+    assert_eq!(spare_status_flagged, 1, "only the first status frame of the spare");
+}
+
+/// Thirteenth black-box tester (2026-11-28, `mixed_old_unit_then_new`, seed 13000): a
+/// locomotive's layout-2 unit (no session frames; fleet number 14) is replaced during a 69 s
+/// stop by a layout-3.2 unit whose count is 569. Its release number reads as behind (57 after
+/// 4), and with no count of the locomotive known its session frame decided nothing: every later
+/// frame was flagged (889 genuine frames). Now the layout-2 unit's release number stands for its
+/// count: the new unit's first status frame and session frame are flagged (the count is further
+/// on than the time since allows), its session opens, and its next session frame gives the count
+/// as at first contact; every report of the new unit is shown, current.
+#[test]
+fn r13_a_layout_2_unit_replaced_by_one_that_reads_as_behind_is_followed() {
+    let frames = tagged("R13_layout2_unit_replaced_reads_behind");
+    let swap = frames.windows(2).position(|w| w[1].0 > w[0].0 + 20_000_000).expect("the stop") + 1;
+    let mut d = Decoder::new();
+    let (mut flagged_after, mut new_reports) = (Vec::new(), 0);
+    for (i, (time_us, frame, tag)) in frames.iter().enumerate() {
+        assert_eq!(tag, "g");
+        let r = d.receive(*time_us, frame);
+        if i < swap {
+            assert!(r.result.is_ok(), "line {} (first unit): {r:?}", i + 1);
+        } else if r.result.is_err() {
+            flagged_after.push(i + 1);
+        } else if matches!(r.result, Ok(Report::Fault(_))) {
+            assert!(!r.stale, "line {} (new unit's report) not current: {r:?}", i + 1);
+            new_reports += 1;
+        }
+    }
+    assert_eq!(flagged_after, vec![swap + 1, swap + 2], "only the new unit's first status and session frames");
+    assert!(new_reports > 450, "{new_reports}");
 }
