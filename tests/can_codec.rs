@@ -581,10 +581,12 @@ fn heartbeat_loss_and_restart() {
     assert!(r.result.is_ok(), "{r:?}");
     assert!(d.receive(15_000_000, &status(1, 4)).result.is_ok());
     // After another silence: a frame of the release followed before that does not continue it
-    // is a replay (stale), one of an earlier release is of the wrong release.
+    // is a replay, refused for what continuing lacks (a counter 104 on after 4.5 s: untimely;
+    // it had been labelled "stale: 105 not newer than 1"); one of an earlier release is of the
+    // wrong release.
     let r = d.receive(19_500_000, &status(105, 4));
     assert!(r.heartbeat_lost_us.is_some());
-    assert_eq!(r.result.unwrap_err().label(), "stale");
+    assert_eq!(r.result.unwrap_err().label(), "untimely");
     assert_eq!(d.receive(19_600_000, &status(0, 4)).result.unwrap_err().label(), "stale");
     assert_eq!(d.receive(19_700_000, &status(0, 3)).result.unwrap_err().label(), "wrong_release");
     // The sender went on during the silence (bus cut): its continuing heartbeat is accepted.

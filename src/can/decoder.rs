@@ -1151,18 +1151,27 @@ impl Decoder {
                         // The session frame right after it may show a restart by its count.
                         self.st.restart_candidate = Some((link, now));
                     }
+                    // Why a frame that neither continues the lost session nor restarts is refused:
+                    // what continuing it lacks (a counter not newer, or the wrong moment for a
+                    // newer one; "stale: 160 not newer than 159" had misnamed the latter).
+                    let not_continuing = || {
+                        lost_same.map_or(FrameError::Stale { last: 0, got: link.counter }, |p| {
+                            continuation(&p, now, &link).err().unwrap_or(FrameError::Stale {
+                                last: p.counter,
+                                got: link.counter,
+                            })
+                        })
+                    };
                     if release == newest {
                         // The release this receiver already followed, not continuing it: a
                         // frame from before the silence.
-                        let last = lost_same.map_or(0, |p| p.counter);
-                        return Err(FrameError::Stale { last, got: link.counter });
+                        return Err(not_continuing());
                     }
                     if !release_not_before(release, newest) {
                         return Err(FrameError::WrongRelease { expected: newest, got: release });
                     }
                     if !self.restart_plausible(&link, now, lost_same.as_ref()) {
-                        let last = lost_same.map_or(0, |p| p.counter);
-                        return Err(FrameError::Stale { last, got: link.counter });
+                        return Err(not_continuing());
                     }
                     self.open(now, &link, true, rec);
                     self.mark_restart_jump(newest);
