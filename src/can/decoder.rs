@@ -1156,10 +1156,9 @@ impl Decoder {
                     // newer one; "stale: 160 not newer than 159" had misnamed the latter).
                     let not_continuing = || {
                         lost_same.map_or(FrameError::Stale { last: 0, got: link.counter }, |p| {
-                            continuation(&p, now, &link).err().unwrap_or(FrameError::Stale {
-                                last: p.counter,
-                                got: link.counter,
-                            })
+                            continuation(&p, now, &link)
+                                .err()
+                                .unwrap_or(FrameError::Stale { last: p.counter, got: link.counter })
                         })
                     };
                     if release == newest {

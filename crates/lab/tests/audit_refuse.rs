@@ -433,3 +433,19 @@ fn a_stuck_adc_bit_is_a_sensor_fault() {
         assert_eq!(fault.map(|f| f.1), Some(pbm::sensor::SensorFault::LostResolution), "{file}");
     }
 }
+
+/// A ninth independent tester's transducer 15× as noisy as specified
+/// (`tests/data/independent5/noisy_masked`): on one release the core latched `implausible_level`
+/// first (a reading below atmosphere at the release command), which hid the `noisy` fault, and
+/// that release was audited `none`, "consistent with the noise". The audit now refuses a trace
+/// whose noise is above the core's bound itself.
+#[test]
+fn a_noisy_transducer_is_refused_when_another_latched_fault_hides_it() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/data/independent5/noisy_masked");
+    let trace = pbm_io::trace::read_trace(&dir.join("rel_01.csv")).unwrap();
+    let fault = pbm_lab::audit::signal_destroying_fault(&trace).unwrap();
+    assert_ne!(fault.map(|f| f.1), Some(pbm::sensor::SensorFault::Noisy), "the core saw it: nothing hidden");
+    let msg = no_usable_release(&dir);
+    assert!(msg.contains("rel_01.csv: sensor fault `noisy`: the noise is 0.15"), "{msg}");
+    assert_eq!(msg.matches("sensor fault `noisy`").count(), 2, "{msg}");
+}
