@@ -27,13 +27,17 @@
 //!    fault that destroys the signal ([`signal_destroying_fault`], [`refuses`]; an
 //!    `impossible_rate` drop during the rise that the pressure comes back from may be the
 //!    chamber's, which a transducer step that stays cannot be: [`chamber_drop`], audited with a
-//!    warning), too little
+//!    warning; noise above the core's `noisy` bound, [`NOISY_SIGMA_BAR`], even when the core
+//!    latched another fault first), too little
 //!    pressure rise ([`required_rise_bar`], [`MIN_RISE_BAR`]), a chamber not vented at the
 //!    release command ([`START_MAX_BAR`]), a pressure that falls back by more than half of its
 //!    rise ([`vented_again`]: vented again, a second release, a test signal), or cut off before the plateau
 //!    ([`required_samples`]). Releases of one configuration have the same noise-free
 //!    response, so each group is fitted through its *mean* trace (noise σ/√n). The noise σ of
-//!    every trace is estimated from the data (MAD of second differences), never assumed.
+//!    every trace is estimated from the data (MAD of second differences), never assumed; when
+//!    the releases' deviations from their mean under a second are larger
+//!    ([`ReleaseSpread::noise_correlated`]: noise correlated in time), the verdict says so and
+//!    measures the residual against them too.
 //! 2. **Base fit**: the fixed-point core twin ([`pbm::Twin`], ≈ 1 ms per 60 s release) with six
 //!    base parameters free inside the locomotive's manufacturing tolerance (SPEC §5): Cf, V0, F0,
 //!    K, friction (Fc and Fs together) each × (1 ± 5.5 %), supply ± 0.035 bar. Bounding the base
@@ -2845,7 +2849,8 @@ impl AuditOutcome {
     /// "noise_sigma_bar", "ranking", "warnings", "release_spread"}`; `warnings` is an array of
     /// strings (unknown metadata keys, a chamber drop, [`AuditData::warnings`]), empty when there
     /// is nothing to say; `release_spread` is `{"first_file", "releases", "spread_bar",
-    /// "noise_bar", "matters"}` ([`ReleaseSpread`]) or `null` (no group of 3 releases).
+    /// "noise_bar", "matters", "white_noise_bar", "fast_noise_bar", "noise_correlated"}`
+    /// ([`ReleaseSpread`]) or `null` (no group of 3 releases).
     ///
     /// - one mechanism: `cause` is its name, `magnitude` a number in its unit;
     /// - two: `cause` is `a+b` (names in [`Mechanism::ALL`] order, i.e. the issue's), `magnitude` and
