@@ -259,12 +259,18 @@ pub struct AuditData {
 /// Robust white-noise σ of a 100 Hz trace: MAD of second differences / sqrt(6).
 pub fn noise_sigma(y: &[f64]) -> f64 {
     let mut d: Vec<f64> = y.windows(3).map(|w| w[2] - 2.0 * w[1] + w[0]).collect();
-    if d.is_empty() {
+    robust_sigma(&mut d) / 6f64.sqrt()
+}
+
+/// Robust σ of `v` (reordered): 1.4826 × its median absolute deviation from its median; 0 when
+/// empty.
+fn robust_sigma(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
         return 0.0;
     }
-    let med = median(&mut d);
-    let mut dev: Vec<f64> = d.iter().map(|v| (v - med).abs()).collect();
-    1.4826 * median(&mut dev) / 6f64.sqrt()
+    let med = median(v);
+    let mut dev: Vec<f64> = v.iter().map(|x| (x - med).abs()).collect();
+    1.4826 * median(&mut dev)
 }
 
 /// Lag-1 autocorrelation of the noise of `y`, from its second differences (the signal's are
@@ -2013,12 +2019,7 @@ pub fn fast_deviation_sigma(d: &[f64]) -> f64 {
             d[i] - (prefix[b] - prefix[a]) / (b - a) as f64
         })
         .collect();
-    if hp.is_empty() {
-        return 0.0;
-    }
-    let med = median(&mut hp);
-    let mut dev: Vec<f64> = hp.iter().map(|v| (v - med).abs()).collect();
-    1.4826 * median(&mut dev)
+    robust_sigma(&mut hp)
 }
 
 /// How many times what their noise alone gives the releases must differ by before the spread
@@ -2101,8 +2102,8 @@ pub fn release_spread(data: &AuditData) -> Option<ReleaseSpread> {
         .filter(|g| g.traces.len() >= 3)
         .filter_map(|g| {
             let n = g.traces.len() as f64;
-            let mut fast: Vec<f64> = Vec::new();
-            let (mut spread, mut noise): (Vec<f64>, Vec<f64>) = g
+            // Per release: (spread beyond its noise, what its noise alone gives, fast σ).
+            let per_release: Vec<(f64, f64, f64)> = g
                 .traces
                 .iter()
                 .zip(&g.sigma_traces)
@@ -2112,12 +2113,15 @@ pub fn release_spread(data: &AuditData) -> Option<ReleaseSpread> {
                     if smooth.is_empty() {
                         return None;
                     }
-                    fast.push(fast_deviation_sigma(&d) / (1.0 - 1.0 / n).sqrt());
                     let rms = (smooth.iter().map(|x| x * x).sum::<f64>() / smooth.len() as f64).sqrt();
                     let alone = sigma * ((1.0 - 1.0 / n) / w as f64).sqrt();
-                    Some(((rms * rms - alone * alone).max(0.0).sqrt(), alone))
+                    let fast = fast_deviation_sigma(&d) / (1.0 - 1.0 / n).sqrt();
+                    Some(((rms * rms - alone * alone).max(0.0).sqrt(), alone, fast))
                 })
-                .unzip();
+                .collect();
+            let mut spread: Vec<f64> = per_release.iter().map(|r| r.0).collect();
+            let mut noise: Vec<f64> = per_release.iter().map(|r| r.1).collect();
+            let mut fast: Vec<f64> = per_release.iter().map(|r| r.2).collect();
             let mut white = g.sigma_traces.clone();
             (!spread.is_empty()).then(|| ReleaseSpread {
                 first_file: g.files.first().cloned().unwrap_or_default(),
