@@ -214,6 +214,14 @@ pub enum FrameError {
         /// The count received.
         got: u32,
     },
+    /// A fault report with the counter of the report held, of its release and on time, but
+    /// other content: the sender never sends two reports with one counter, so one of the two is
+    /// another sender's whose CRC happens to fit, or a corruption that kept it. The held one is
+    /// withdrawn ([`super::Reception::withdrawn`]) and neither is current.
+    Conflicting {
+        /// The counter both carry.
+        counter: u8,
+    },
     /// A fault report with no live heartbeat to attribute it to (before the first status frame
     /// or after the heartbeat was lost): its locomotive and release cannot be checked.
     NoHeartbeat,
@@ -241,6 +249,7 @@ impl FrameError {
             Self::ForeignSender { .. } => "foreign_sender",
             Self::WrongRelease { .. } => "wrong_release",
             Self::WrongReleaseCount { .. } => "wrong_release_count",
+            Self::Conflicting { .. } => "conflicting",
             Self::NoHeartbeat => "no_heartbeat",
             Self::InvalidSignal { .. } => "invalid_signal",
         }
@@ -270,6 +279,11 @@ impl core::fmt::Display for FrameError {
             Self::WrongReleaseCount { known, got } => {
                 write!(f, "release count {got} does not follow {known} (further on than the time allows, or not this session's)")
             }
+            Self::Conflicting { counter } => write!(
+                f,
+                "conflicting: another report with counter {counter} of this release said otherwise (one of the two is \
+                 another sender's whose CRC fits; neither is shown)"
+            ),
             Self::NoHeartbeat => write!(f, "no heartbeat to attribute it to"),
             Self::InvalidSignal { signal, raw } => write!(f, "invalid value {raw} in signal {signal}"),
         }

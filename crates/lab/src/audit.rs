@@ -35,9 +35,10 @@
 //!    ([`required_samples`]). Releases of one configuration have the same noise-free
 //!    response, so each group is fitted through its *mean* trace (noise σ/√n). The noise σ of
 //!    every trace is estimated from the data (MAD of second differences), never assumed; when
-//!    the releases' deviations from their mean under a second are larger
-//!    ([`ReleaseSpread::noise_correlated`]: noise correlated in time), the verdict says so and
-//!    measures the residual against them too.
+//!    the releases' deviations from their mean under a second are larger (noise correlated in
+//!    time, [`NoiseColour`]), the group's noise σ is theirs when they look like a transducer's
+//!    noise (steady along the release, no larger than [`NOISY_SIGMA_BAR`]), and the verdict
+//!    says so either way.
 //! 2. **Base fit**: the fixed-point core twin ([`pbm::Twin`], ≈ 1 ms per 60 s release) with six
 //!    base parameters free inside the locomotive's manufacturing tolerance (SPEC §5): Cf, V0, F0,
 //!    K, friction (Fc and Fs together) each × (1 ± 5.5 %), supply ± 0.035 bar. Bounding the base
@@ -237,10 +238,16 @@ pub struct Group {
     pub files: Vec<String>,
     /// Mean measured pressure, bar g, 100 Hz from t = 0.
     pub mean: Vec<f64>,
-    /// Noise σ of the mean trace, bar (per-trace estimate / √n).
+    /// Noise σ of the mean trace, bar: the releases' noise σ / √n, from sample to sample, or
+    /// under a second when [`Self::colour`] is [`NoiseColour::Correlated`].
     pub sigma_mean: f64,
-    /// Per-trace noise estimates, bar.
+    /// Per-trace noise estimates from sample to sample ([`noise_sigma`]), bar.
     pub sigma_traces: Vec<f64>,
+    /// The releases' noise σ under a second ([`fast_noise`]; 0 with fewer than
+    /// [`MIN_RELEASES_FOR_COLOUR`] releases), bar.
+    pub sigma_fast: f64,
+    /// How the releases' noise was judged ([`noise_colour`]).
+    pub colour: NoiseColour,
     /// Individual traces (for per-trace NMSE).
     pub traces: Vec<Vec<f64>>,
 }
@@ -388,6 +395,8 @@ pub fn data_from_traces(source: &str, traces: Vec<(String, TwinParams, Vec<f64>)
                 mean: Vec::new(),
                 sigma_mean: 0.0,
                 sigma_traces: vec![sigma],
+                sigma_fast: 0.0,
+                colour: NoiseColour::White,
                 traces: vec![p],
             }),
         }
@@ -402,8 +411,12 @@ pub fn data_from_traces(source: &str, traces: Vec<(String, TwinParams, Vec<f64>)
         for t in &mut g.traces {
             t.truncate(n);
         }
-        let mut s = g.sigma_traces.clone();
-        g.sigma_mean = (median(&mut s) / k.sqrt()).max(1e-4);
+        let white = median(&mut g.sigma_traces.clone());
+        let fast = fast_noise(&g.traces, &g.mean);
+        g.sigma_fast = fast.sigma;
+        g.colour = noise_colour(white, &fast);
+        let sigma = if g.colour == NoiseColour::Correlated { fast.sigma } else { white };
+        g.sigma_mean = (sigma / k.sqrt()).max(1e-4);
     }
     Ok(AuditData { source: source.to_owned(), groups, warnings: Vec::new() })
 }
@@ -1993,12 +2006,17 @@ pub struct ReleaseSpread {
     /// [`FAST_WINDOW_S`] ([`fast_deviation_sigma`]), median, bar: the noise σ whatever its
     /// colour (a genuine difference between releases is slower).
     pub fast_noise_bar: f64,
+    /// How the group's noise was judged ([`Group::colour`]).
+    pub colour: NoiseColour,
 }
 
 /// The deviations' σ under [`FAST_WINDOW_S`] above this many times the sample-to-sample σ: the
-/// noise is correlated in time ([`ReleaseSpread::noise_correlated`]). White noise gives 1 (±
-/// a few %).
-pub const CORRELATED_NOISE_RATIO: f64 = 1.5;
+/// noise is not white ([`NoiseColour`]): correlated in time, or read through an ADC so coarse
+/// that the sample-to-sample estimate (a MAD of second differences) reads low. Measured on
+/// independent testers' sets: white noise through 12 and 16 bits 1.00–1.16 (237 sets of the
+/// ninth and tenth testers), a 10-bit ADC (a step of 1.2 σ) 1.43–1.45, and healthy brakes read
+/// that way were `unexplained` at 1.4–1.5×; correlated noise of τ 0.03 s 1.75, of τ 0.1 s 4.7–5.0.
+pub const CORRELATED_NOISE_RATIO: f64 = 1.3;
 
 /// The time scale below which a release's deviation from its group's mean is taken for noise, s.
 pub const FAST_WINDOW_S: f64 = 1.0;
@@ -2008,18 +2026,140 @@ pub const FAST_WINDOW_S: f64 = 1.0;
 /// whatever its colour, while a genuine difference between releases (a leak on some, a delay)
 /// is slower, and a brief one (a corner out of step) moves the median little.
 pub fn fast_deviation_sigma(d: &[f64]) -> f64 {
+    robust_sigma(&mut fast_deviation(d))
+}
+
+/// `d` less its centred moving average over [`FAST_WINDOW_S`].
+fn fast_deviation(d: &[f64]) -> Vec<f64> {
     let half = (FAST_WINDOW_S / SAMPLE_PERIOD_S / 2.0) as usize;
     let mut prefix = vec![0.0; d.len() + 1];
     for (i, v) in d.iter().enumerate() {
         prefix[i + 1] = prefix[i] + v;
     }
-    let mut hp: Vec<f64> = (0..d.len())
+    (0..d.len())
         .map(|i| {
             let (a, b) = (i.saturating_sub(half), (i + half + 1).min(d.len()));
             d[i] - (prefix[b] - prefix[a]) / (b - a) as f64
         })
-        .collect();
-    robust_sigma(&mut hp)
+        .collect()
+}
+
+/// Fewest releases in a group for the noise under a second to be measured ([`fast_noise`]): the
+/// same as for [`release_spread`], whose verdict sentence says how it was judged.
+pub const MIN_RELEASES_FOR_COLOUR: usize = 3;
+
+/// The releases' deviations from their mean under a second ([`fast_noise`]).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FastNoise {
+    /// Their σ: the median over the releases of [`fast_deviation_sigma`] (corrected for the
+    /// mean's share of each deviation), bar.
+    pub sigma: f64,
+    /// The same median in each third of the release, bar.
+    pub thirds: [f64; 3],
+    /// The lowest autocorrelation of the deviations (averaged over the releases) at lags up to
+    /// 2 × [`FAST_WINDOW_S`]: near −1 for an oscillation, above −0.4 for noise of any colour.
+    pub acf_min: f64,
+}
+
+/// [`FastNoise`] of `traces` about their `mean`; zeros with fewer than
+/// [`MIN_RELEASES_FOR_COLOUR`] traces.
+pub fn fast_noise(traces: &[Vec<f64>], mean: &[f64]) -> FastNoise {
+    let max_lag = (2.0 * FAST_WINDOW_S / SAMPLE_PERIOD_S) as usize;
+    if traces.len() < MIN_RELEASES_FOR_COLOUR || mean.len() < 3 * max_lag {
+        return FastNoise::default();
+    }
+    let share = (1.0 - 1.0 / traces.len() as f64).sqrt();
+    let third = mean.len() / 3;
+    let (mut sigmas, mut thirds) = (Vec::new(), [Vec::new(), Vec::new(), Vec::new()]);
+    let mut acf_mean = vec![0.0; max_lag];
+    for t in traces {
+        let d: Vec<f64> = t.iter().zip(mean).map(|(a, m)| a - m).collect();
+        let hp = fast_deviation(&d);
+        sigmas.push(robust_sigma(&mut hp.clone()) / share);
+        for (j, part) in thirds.iter_mut().enumerate() {
+            part.push(robust_sigma(&mut hp[j * third..(j + 1) * third].to_vec()) / share);
+        }
+        for (a, r) in acf_mean.iter_mut().zip(acf(&hp, max_lag)) {
+            *a += r / traces.len() as f64;
+        }
+    }
+    let [a, b, c] = &mut thirds;
+    FastNoise {
+        sigma: median(&mut sigmas),
+        thirds: [median(a), median(b), median(c)],
+        acf_min: acf_mean.into_iter().fold(f64::INFINITY, f64::min),
+    }
+}
+
+/// How a group's noise was judged from its σ from sample to sample and its deviations under a
+/// second ([`noise_colour`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NoiseColour {
+    /// White: under a second the releases deviate from their mean no more than
+    /// [`CORRELATED_NOISE_RATIO`] × their noise from sample to sample (or too few releases to
+    /// tell); residuals are judged against the latter.
+    White,
+    /// Correlated in time (or quantised coarsely), and like a transducer's noise: steady along
+    /// the release (its thirds within [`STEADY_NOISE_RATIO`] of each other), not swinging
+    /// ([`OSCILLATION_ACF`]) and no larger than [`NOISY_SIGMA_BAR`].
+    /// Residuals are judged against the noise under a second: from sample to sample a ninth
+    /// independent tester's transducer noise of σ 0.01 bar and τ 0.1 s read 0.0018 bar, and
+    /// healthy brakes were `unexplained` at 5.3×.
+    Correlated,
+    /// Deviations under a second beyond the noise from sample to sample, larger than a
+    /// transducer's noise may be ([`NOISY_SIGMA_BAR`]): releases that differ quickly (a
+    /// regulator hunting out of step), not noise; residuals are judged against the noise from
+    /// sample to sample.
+    TooLarge,
+    /// Such deviations, uneven along the release (thirds more than [`STEADY_NOISE_RATIO`]
+    /// apart): events on some releases rather than noise; judged as [`Self::TooLarge`].
+    Unsteady,
+    /// Such deviations that oscillate (their autocorrelation falls below
+    /// [`OSCILLATION_ACF`]): releases that swing out of step with each other (a regulator
+    /// hunting with another phase on each), not noise; judged as [`Self::TooLarge`]. Taken for
+    /// noise, 0.05 bar swinging at 0.7 Hz made the base model `none`.
+    Oscillating,
+}
+
+/// Autocorrelation of the deviations under a second ([`FastNoise::acf_min`]) below which they
+/// oscillate ([`NoiseColour::Oscillating`]). Noise correlated in time, high-passed as the
+/// deviations are, gives −0.11 to −0.38 (time constants 0.03–1 s, pink noise −0.14); a swing
+/// that makes the deviations [`CORRELATED_NOISE_RATIO`] × the white noise gives below −0.55.
+pub const OSCILLATION_ACF: f64 = -0.45;
+
+impl NoiseColour {
+    /// Its name in the JSON verdict: `white`, `correlated`, `too_large`, `unsteady`, `oscillating`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::White => "white",
+            Self::Correlated => "correlated",
+            Self::TooLarge => "too_large",
+            Self::Unsteady => "unsteady",
+            Self::Oscillating => "oscillating",
+        }
+    }
+}
+
+/// Largest ratio between the noise under a second of two thirds of a release that is still
+/// steady noise ([`NoiseColour::Correlated`]): measured 1.00–1.03 on the ninth tester's
+/// correlated-noise sets, up to 1.3 on its stuck-ADC-bit set.
+pub const STEADY_NOISE_RATIO: f64 = 1.5;
+
+/// [`NoiseColour`] of a group from its noise σ from sample to sample (`white`) and its
+/// deviations under a second (`fast`).
+pub fn noise_colour(white: f64, fast: &FastNoise) -> NoiseColour {
+    let (lo, hi) = fast.thirds.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    if fast.sigma <= CORRELATED_NOISE_RATIO * white {
+        NoiseColour::White
+    } else if fast.sigma > NOISY_SIGMA_BAR {
+        NoiseColour::TooLarge
+    } else if fast.acf_min < OSCILLATION_ACF {
+        NoiseColour::Oscillating
+    } else if hi > STEADY_NOISE_RATIO * lo {
+        NoiseColour::Unsteady
+    } else {
+        NoiseColour::Correlated
+    }
 }
 
 /// How many times what their noise alone gives the releases must differ by before the spread
@@ -2037,44 +2177,59 @@ impl ReleaseSpread {
     /// other one), 116 ÷ 79 (a leak growing release by release); 1.7 ÷ 16 and 14 ÷ 24 where one
     /// cause acts on every release alike.
     ///
-    /// Under correlated noise ([`Self::noise_correlated`]) a spread no larger than the noise's σ
-    /// under a second may be that noise, which averaging over [`SPREAD_SMOOTH_S`] does not
-    /// remove: it does not matter.
+    /// Under correlated noise ([`NoiseColour::Correlated`]) a spread no larger than the noise's
+    /// σ under a second may be that noise, which averaging over [`SPREAD_SMOOTH_S`] does not
+    /// remove: it does not matter. Deviations under a second that are not taken for noise
+    /// ([`NoiseColour::TooLarge`], [`NoiseColour::Unsteady`]) earn no such allowance.
     pub fn matters(&self, base_to_noise: f64) -> bool {
         self.spread_bar >= SPREAD_NOISE_RATIO * self.noise_bar
             && self.spread_bar >= base_to_noise * self.sigma_mean_bar
-            && !(self.noise_correlated() && self.spread_bar <= self.fast_noise_bar)
+            && !(self.colour == NoiseColour::Correlated && self.spread_bar <= self.fast_noise_bar)
     }
 
-    /// Whether the releases' noise is correlated in time: their deviations from their mean
-    /// under a second exceed [`CORRELATED_NOISE_RATIO`] × the sample-to-sample noise. Residuals
-    /// and the spread are judged against white noise of the latter, so they may read up to
-    /// `fast_noise_bar / white_noise_bar` times too large (a ninth independent tester's healthy
-    /// brakes with transducer noise of σ 0.01 bar and τ 0.1 s read 0.0018 bar from sample to
-    /// sample and were `unexplained` at 5.3×, the releases said to differ beyond their noise).
+    /// Whether the releases deviate from their mean under a second by more than
+    /// [`CORRELATED_NOISE_RATIO`] × their noise from sample to sample: correlated noise, or
+    /// releases that differ quickly ([`Self::colour`] says which it was taken for).
     pub fn noise_correlated(&self) -> bool {
-        self.fast_noise_bar > CORRELATED_NOISE_RATIO * self.white_noise_bar
+        self.colour != NoiseColour::White
     }
 
-    /// The sentence a verdict carries when the noise is correlated ([`Self::noise_correlated`]):
-    /// with the base model's residual (`base_to_noise`, in the white noise σ of the mean)
-    /// measured against the correlated noise too.
+    /// The sentence a verdict carries when [`Self::noise_correlated`]: what the deviations under
+    /// a second were taken for, and what residuals are judged against (`base_to_noise`: the
+    /// base model's residual in the noise σ of the mean release the audit used).
     pub fn correlated_text(&self, base_to_noise: f64) -> String {
-        let factor = self.fast_noise_bar / self.white_noise_bar.max(1e-12);
-        let against = base_to_noise / factor;
-        let verdict = if against <= NOISE_FLOOR_RATIO {
+        let (fast, white) = (self.fast_noise_bar, self.white_noise_bar.max(1e-12));
+        let deviate = format!(
+            "the releases of the group of {} deviate from their mean by {fast:.4} bar under a second, {:.1}× their \
+             noise from sample to sample ({white:.4} bar)",
+            self.first_file,
+            fast / white
+        );
+        let not_noise = |why: &str| {
             format!(
-                "against it the base model's residual is {against:.1}× the noise: the discrepancy may be that noise"
+                "{deviate}, {why}: not taken for the transducer's noise, so residuals are judged against the noise \
+                 from sample to sample (against {fast:.4} bar the base model's residual would be {:.1}×)",
+                base_to_noise * white / fast
             )
-        } else {
-            format!("against it the base model's residual is still {against:.1}× the noise")
         };
-        format!(
-            "the transducer's noise is correlated in time (the releases of the group of {} deviate from their mean \
-             by {:.4} bar under a second, against {:.4} bar from sample to sample, which residuals are judged \
-             against); {verdict}",
-            self.first_file, self.fast_noise_bar, self.white_noise_bar
-        )
+        match self.colour {
+            NoiseColour::White => String::new(),
+            NoiseColour::Correlated => format!(
+                "the transducer's noise is not white: correlated in time, or read through a coarse ADC ({deviate}, \
+                 steadily along the release): residuals are judged against the {fast:.4} bar"
+            ),
+            NoiseColour::TooLarge => not_noise(&format!(
+                "more than a transducer's noise may be ({NOISY_SIGMA_BAR} bar): the releases differ from each other \
+                 within a second (a regulator hunting out of step, say)"
+            )),
+            NoiseColour::Unsteady => {
+                not_noise("unevenly along the release: an event on some releases rather than noise")
+            }
+            NoiseColour::Oscillating => not_noise(
+                "and they swing (their autocorrelation goes negative within two seconds): the releases oscillate \
+                 out of step with each other (a regulator hunting with another phase on each, say)",
+            ),
+        }
     }
 
     /// The sentence a verdict carries when it [`matters`](Self::matters).
@@ -2102,8 +2257,8 @@ pub fn release_spread(data: &AuditData) -> Option<ReleaseSpread> {
         .filter(|g| g.traces.len() >= 3)
         .filter_map(|g| {
             let n = g.traces.len() as f64;
-            // Per release: (spread beyond its noise, what its noise alone gives, fast σ).
-            let per_release: Vec<(f64, f64, f64)> = g
+            // Per release: (spread beyond its noise, what its noise alone gives).
+            let per_release: Vec<(f64, f64)> = g
                 .traces
                 .iter()
                 .zip(&g.sigma_traces)
@@ -2115,13 +2270,11 @@ pub fn release_spread(data: &AuditData) -> Option<ReleaseSpread> {
                     }
                     let rms = (smooth.iter().map(|x| x * x).sum::<f64>() / smooth.len() as f64).sqrt();
                     let alone = sigma * ((1.0 - 1.0 / n) / w as f64).sqrt();
-                    let fast = fast_deviation_sigma(&d) / (1.0 - 1.0 / n).sqrt();
-                    Some(((rms * rms - alone * alone).max(0.0).sqrt(), alone, fast))
+                    Some(((rms * rms - alone * alone).max(0.0).sqrt(), alone))
                 })
                 .collect();
             let mut spread: Vec<f64> = per_release.iter().map(|r| r.0).collect();
             let mut noise: Vec<f64> = per_release.iter().map(|r| r.1).collect();
-            let mut fast: Vec<f64> = per_release.iter().map(|r| r.2).collect();
             let mut white = g.sigma_traces.clone();
             (!spread.is_empty()).then(|| ReleaseSpread {
                 first_file: g.files.first().cloned().unwrap_or_default(),
@@ -2130,7 +2283,8 @@ pub fn release_spread(data: &AuditData) -> Option<ReleaseSpread> {
                 noise_bar: median(&mut noise),
                 sigma_mean_bar: g.sigma_mean,
                 white_noise_bar: median(&mut white),
-                fast_noise_bar: median(&mut fast),
+                fast_noise_bar: g.sigma_fast,
+                colour: g.colour,
             })
         })
         .max_by(|a, b| a.spread_bar.total_cmp(&b.spread_bar))
@@ -2853,7 +3007,8 @@ impl AuditOutcome {
     /// "noise_sigma_bar", "ranking", "warnings", "release_spread"}`; `warnings` is an array of
     /// strings (unknown metadata keys, a chamber drop, [`AuditData::warnings`]), empty when there
     /// is nothing to say; `release_spread` is `{"first_file", "releases", "spread_bar",
-    /// "noise_bar", "matters", "white_noise_bar", "fast_noise_bar", "noise_correlated"}`
+    /// "noise_bar", "matters", "white_noise_bar", "fast_noise_bar", "noise_correlated",
+    /// "noise_colour"}` (`noise_colour`: [`NoiseColour::name`])
     /// ([`ReleaseSpread`]) or `null` (no group of 3 releases).
     ///
     /// - one mechanism: `cause` is its name, `magnitude` a number in its unit;
@@ -2907,6 +3062,7 @@ impl AuditOutcome {
                 "white_noise_bar": r.white_noise_bar,
                 "fast_noise_bar": r.fast_noise_bar,
                 "noise_correlated": r.noise_correlated(),
+                "noise_colour": r.colour.name(),
             }),
             None => serde_json::Value::Null,
         };
@@ -2981,7 +3137,7 @@ impl AuditOutcome {
         if let Some(r) = self.release_spread.as_ref().filter(|r| self.cause != "none" && r.matters(base)) {
             text.push_str(&format!("; {}", r.text()));
         }
-        if let Some(r) = self.release_spread.as_ref().filter(|r| self.cause != "none" && r.noise_correlated()) {
+        if let Some(r) = self.release_spread.as_ref().filter(|r| r.noise_correlated()) {
             text.push_str(&format!("; {}", r.correlated_text(base)));
         }
         if !self.alternatives.is_empty() {

@@ -135,8 +135,9 @@ pub struct DecodeSummary {
     /// Fault reports that arrived while a heartbeat was overdue or lost: shown as stale, never
     /// as current ([`pbm::can::Reception::stale`]).
     pub stale_reports: u64,
-    /// Fault reports accepted, then withdrawn because the monitor's heartbeat did not count
-    /// them ([`pbm::can::Reception::withdrawn`]).
+    /// Fault reports accepted, then withdrawn: not counted by the monitor's heartbeat,
+    /// attributed to a release the heartbeat shows had not begun, or conflicting with a report
+    /// of the same counter ([`pbm::can::Reception::withdrawn`]).
     pub withdrawn: u64,
     /// Status frames whose `FaultReportCount` the reports and counts around them showed to be
     /// corrupt (a corruption the CRC missed; [`pbm::can::Reception::count_corrupt`]).
@@ -188,7 +189,11 @@ impl std::fmt::Display for DecodeSummary {
             write!(f, "; {} replayed sessions superseded", self.superseded)?;
         }
         if self.withdrawn > 0 {
-            write!(f, "; {} fault reports withdrawn (not counted by the monitor's heartbeat)", self.withdrawn)?;
+            write!(
+                f,
+                "; {} fault reports withdrawn (not this monitor's: not counted by its heartbeat, or contradicted)",
+                self.withdrawn
+            )?;
         }
         if self.corrupt_counts > 0 {
             write!(f, "; {} status frames with a corrupt fault-report count (ignored)", self.corrupt_counts)?;
@@ -531,12 +536,24 @@ impl<W: Write> CabDisplay<W> {
                     }
                     None => "no report is shown".to_owned(),
                 };
+                let why = if matches!(reception.result, Err(pbm::can::FrameError::Conflicting { .. })) {
+                    "with the counter of the report just refused as conflicting (one of the two is another sender's, whose \
+                     CRC happens to fit)"
+                } else if reception.withdrawn_next_release {
+                    "attributed to the next release, which this heartbeat shows had not begun (another sender's, whose \
+                     CRC happens to fit)"
+                } else {
+                    "that the monitor's heartbeat does not count (not sent by it)"
+                };
                 writeln!(
                     self.out,
-                    "{} s  !! withdrawn: {} fault report(s) up to {} s that the monitor's heartbeat does not count (not sent by it); {shown}",
+                    "{} s  !! withdrawn: {} fault report(s) up to {} s {why}; {shown}",
                     time_text(t),
                     reception.withdrawn,
-                    first.map(|(at, _)| at).or(self.last_report_us).map_or_else(|| "-".to_owned(), |at| time_text(self.rel(at)).trim_start().to_owned())
+                    first
+                        .map(|(at, _)| at)
+                        .or(self.last_report_us)
+                        .map_or_else(|| "-".to_owned(), |at| time_text(self.rel(at)).trim_start().to_owned())
                 )?;
             }
         }

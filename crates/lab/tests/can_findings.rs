@@ -643,3 +643,81 @@ fn r13_a_layout_2_unit_replaced_by_one_that_reads_as_behind_is_followed() {
     assert_eq!(flagged_after, vec![swap + 1, swap + 2], "only the new unit's first status and session frames");
     assert!(new_reports > 450, "{new_reports}");
 }
+
+/// Fifteenth black-box tester (2026-11-28, `foreign_collide_next`, seed 15000): one fault report
+/// of another unit on the bus whose CRC happens to fit the followed unit's *next* release (one
+/// in 256 of any other unit's reports), with its time since release placing that release after
+/// the last heartbeat and the sender's next counter, 93 ms before a heartbeat. It was shown
+/// current as "release 24" while every heartbeat said 23, never withdrawn, and the genuine
+/// report with the same counter 0.25 s later was flagged stale. Now the heartbeat after it,
+/// received 0.9 s after that release would have begun and still carrying release 23, withdraws
+/// it, and the genuine report is accepted.
+#[test]
+fn r15_a_foreign_report_fitting_the_next_release_is_withdrawn_by_the_heartbeat_after_it() {
+    let frames = tagged("R15_foreign_report_fits_next_release");
+    let mut d = Decoder::new();
+    let (mut injected_at, mut withdrawn_at, mut genuine_reports) = (None, None, 0);
+    for (i, (time_us, frame, tag)) in frames.iter().enumerate() {
+        let line = i + 1;
+        let r = d.receive(*time_us, frame);
+        if r.withdrawn > 0 {
+            assert!(withdrawn_at.is_none(), "line {line}: a second withdrawal {r:?}");
+            assert_eq!(r.withdrawn, 1, "line {line}: {r:?}");
+            assert!(r.withdrawn_next_release, "line {line}: {r:?}");
+            assert!(matches!(r.result, Ok(Report::Status(_))), "line {line}: {r:?}");
+            withdrawn_at = Some(line);
+        }
+        if tag == "i" {
+            injected_at = Some(line);
+            continue;
+        }
+        assert!(r.result.is_ok(), "line {line} (genuine) flagged: {r:?}");
+        if matches!(r.result, Ok(Report::Fault(_))) {
+            assert!(!r.stale, "line {line} (genuine report) not current: {r:?}");
+            genuine_reports += 1;
+        }
+    }
+    let injected_at = injected_at.expect("the injected report");
+    let withdrawn_at = withdrawn_at.expect("withdrawn");
+    // The next frame after the injected one is the heartbeat that withdraws it.
+    assert_eq!(withdrawn_at, injected_at + 1);
+    assert!(genuine_reports > 250, "{genuine_reports}");
+}
+
+/// Fifteenth black-box tester (`foreign_collide_next`, seed 15008): another unit's report whose
+/// CRC fits the followed unit's *current* release, on time for it and with the counter the
+/// genuine sender uses next, 0.6 s before the genuine report with that counter. It was shown
+/// current and the genuine one flagged `stale`. The sender never sends two reports with one
+/// counter, so when the genuine one comes with other content one of the two is not its; nothing
+/// tells which: the held one is withdrawn and the second flagged `conflicting`, and the reports
+/// after them are accepted as before.
+#[test]
+fn r15_two_reports_with_one_counter_that_differ_are_neither_shown() {
+    let frames = tagged("R15_foreign_report_same_counter");
+    let mut d = Decoder::new();
+    let (mut injected_at, mut conflict_at, mut genuine_reports) = (None, None, 0);
+    for (i, (time_us, frame, tag)) in frames.iter().enumerate() {
+        let line = i + 1;
+        let r = d.receive(*time_us, frame);
+        if tag == "i" {
+            assert!(r.result.is_ok(), "line {line}: {r:?}");
+            injected_at = Some(line);
+            continue;
+        }
+        if let Err(pbm::can::FrameError::Conflicting { .. }) = r.result {
+            assert!(conflict_at.is_none(), "line {line}: {r:?}");
+            assert_eq!(r.withdrawn, 1, "line {line}: the injected report withdrawn {r:?}");
+            conflict_at = Some(line);
+            continue;
+        }
+        assert!(r.result.is_ok(), "line {line} (genuine) flagged: {r:?}");
+        assert_eq!(r.withdrawn, 0, "line {line}: {r:?}");
+        if matches!(r.result, Ok(Report::Fault(_))) {
+            assert!(!r.stale, "line {line} (genuine report) not current: {r:?}");
+            genuine_reports += 1;
+        }
+    }
+    let (injected_at, conflict_at) = (injected_at.expect("injected"), conflict_at.expect("the conflict"));
+    assert!(conflict_at > injected_at && conflict_at <= injected_at + 3, "{injected_at} {conflict_at}");
+    assert!(genuine_reports > 250, "{genuine_reports}");
+}
