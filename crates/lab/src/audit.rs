@@ -2059,6 +2059,9 @@ pub struct FastNoise {
     /// The lowest autocorrelation of the deviations (averaged over the releases) at lags up to
     /// 2 × [`FAST_WINDOW_S`]: near −1 for an oscillation, above −0.4 for noise of any colour.
     pub acf_min: f64,
+    /// The largest over the smallest σ of one release's deviations: a transducer's noise is the
+    /// same on every release, a vibration on some of them is not.
+    pub release_ratio: f64,
 }
 
 /// [`FastNoise`] of `traces` about their `mean`; zeros with fewer than
@@ -2084,7 +2087,10 @@ pub fn fast_noise(traces: &[Vec<f64>], mean: &[f64]) -> FastNoise {
         }
     }
     let [a, b, c] = &mut thirds;
+    let (lo, hi) = sigmas.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+    let release_ratio = if lo > 0.0 { hi / lo } else { f64::INFINITY };
     FastNoise {
+        release_ratio,
         sigma: median(&mut sigmas),
         thirds: [median(a), median(b), median(c)],
         acf_min: acf_mean.into_iter().fold(f64::INFINITY, f64::min),
@@ -2112,7 +2118,12 @@ pub enum NoiseColour {
     /// sample to sample.
     TooLarge,
     /// Such deviations, uneven along the release (thirds more than [`STEADY_NOISE_RATIO`]
-    /// apart): events on some releases rather than noise; judged as [`Self::TooLarge`].
+    /// apart) or from release to release (one release's σ more than [`RELEASE_NOISE_RATIO`]
+    /// times another's):
+    /// events or a vibration on some releases rather than a transducer's noise, which is the
+    /// same on every one; judged as [`Self::TooLarge`]. An eleventh independent tester's narrow-band
+    /// 7–10 Hz vibration of 0.02–0.03 bar on half of the releases was `none` when taken for
+    /// noise (5 sets; `unexplained` at 1.5–2.3× against the white noise).
     Unsteady,
     /// Such deviations that oscillate (their autocorrelation falls below
     /// [`OSCILLATION_ACF`]): releases that swing out of step with each other (a regulator
@@ -2145,6 +2156,12 @@ impl NoiseColour {
 /// correlated-noise sets, up to 1.3 on its stuck-ADC-bit set.
 pub const STEADY_NOISE_RATIO: f64 = 1.5;
 
+/// Largest ratio between two releases' noise under a second that is still one transducer's
+/// noise ([`NoiseColour::Correlated`]): 1.01–1.18 on an eleventh independent tester's 25 sets of
+/// correlated noise (AR τ 0.02–0.5 s, pink, 10-bit ADC; 3–8 releases), 1.40–2.43 where a
+/// vibration of 0.02–0.03 bar was on some of the releases only.
+pub const RELEASE_NOISE_RATIO: f64 = 1.3;
+
 /// [`NoiseColour`] of a group from its noise σ from sample to sample (`white`) and its
 /// deviations under a second (`fast`).
 pub fn noise_colour(white: f64, fast: &FastNoise) -> NoiseColour {
@@ -2155,7 +2172,7 @@ pub fn noise_colour(white: f64, fast: &FastNoise) -> NoiseColour {
         NoiseColour::TooLarge
     } else if fast.acf_min < OSCILLATION_ACF {
         NoiseColour::Oscillating
-    } else if hi > STEADY_NOISE_RATIO * lo {
+    } else if hi > STEADY_NOISE_RATIO * lo || fast.release_ratio > RELEASE_NOISE_RATIO {
         NoiseColour::Unsteady
     } else {
         NoiseColour::Correlated
@@ -2222,9 +2239,9 @@ impl ReleaseSpread {
                 "more than a transducer's noise may be ({NOISY_SIGMA_BAR} bar): the releases differ from each other \
                  within a second (a regulator hunting out of step, say)"
             )),
-            NoiseColour::Unsteady => {
-                not_noise("unevenly along the release: an event on some releases rather than noise")
-            }
+            NoiseColour::Unsteady => not_noise(
+                "unevenly along the release or from release to release (events, or a vibration on some releases)",
+            ),
             NoiseColour::Oscillating => not_noise(
                 "and they swing (their autocorrelation goes negative within two seconds): the releases oscillate \
                  out of step with each other (a regulator hunting with another phase on each, say)",

@@ -744,7 +744,8 @@ fn correlated_transducer_noise_is_said_and_no_spread_is_claimed_from_it() {
 /// project's own plant, read through white noise (σ 0.01 bar) plus noise of σ 0.03 bar and τ
 /// 0.1 s, is `none` with the correlation said; the same brake whose releases swing by 0.05 bar
 /// at 0.7 Hz, each in its own phase, is not taken for noise (its deviations under a second are
-/// 2.3× the white noise too), and is never `none`: taken for noise, it was.
+/// 2.3× the white noise too), and is never `none`: taken for noise, it was; nor is a vibration
+/// on some of the releases only.
 #[test]
 fn correlated_noise_is_the_noise_and_releases_swinging_out_of_step_are_not() {
     use rand_core::SeedableRng;
@@ -792,4 +793,42 @@ fn correlated_noise_is_the_noise_and_releases_swinging_out_of_step_are_not() {
     assert_eq!(spread.colour, NoiseColour::Oscillating, "{spread:?}");
     assert_ne!(out.cause, "none", "{text}");
     assert!(text.contains("not taken for the transducer's noise"), "{text}");
+
+    // A 10 Hz vibration of 0.025 bar on two releases of four, each in its own phase, under
+    // correlated noise of σ 0.012
+    // bar: a transducer's noise is the same on every release (an eleventh independent tester's
+    // vibration on some releases only was `none` when taken for noise).
+    let release = Cell::new(0usize);
+    let vibrating = |p: &[f64]| {
+        let k = release.get();
+        release.set(k + 1);
+        let w = pbm_lab::generate::transducer_noise(p.len(), 0.012, &mut *rng.borrow_mut());
+        let mut x = 0.0;
+        let with_noise: Vec<f64> = p
+            .iter()
+            .zip(w)
+            .map(|(p, w)| {
+                x = r * x + (1.0 - r * r).sqrt() * w;
+                p + x
+            })
+            .collect();
+        if k % 2 == 0 {
+            return with_noise;
+        }
+        with_noise
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let t = i as f64 * pbm::twin::SAMPLE_PERIOD_S;
+                p + 0.025 * (2.0 * std::f64::consts::PI * 10.0 * t + 2.1 * k as f64).sin()
+            })
+            .collect()
+    };
+    let data = plant_set_read(4, 3904, |_| pbm::TwinParams::nominal(), vibrating);
+    let out = audit(&data, AuditOptions::default()).expect("audit runs");
+    let text = out.verdict_text();
+    eprintln!("vibrating: {text}");
+    let spread = out.release_spread.as_ref().expect("four releases");
+    assert_eq!(spread.colour, NoiseColour::Unsteady, "{spread:?}");
+    assert_ne!(out.cause, "none", "{text}");
 }
