@@ -36,9 +36,9 @@
 //!    response, so each group is fitted through its *mean* trace (noise σ/√n). The noise σ of
 //!    every trace is estimated from the data (MAD of second differences), never assumed; when
 //!    the releases' deviations from their mean under a second are larger (noise correlated in
-//!    time, [`NoiseColour`]), the group's noise σ is theirs when they look like a transducer's
-//!    noise (steady along the release, no larger than [`NOISY_SIGMA_BAR`]), and the verdict
-//!    says so either way.
+//!    time, or a coarse ADC: [`NoiseColour`]), the group's noise σ is theirs when they look
+//!    like a transducer's noise (steady along the release, the same on every release, not
+//!    swinging, no larger than [`NOISY_SIGMA_BAR`]), and the verdict says so either way.
 //! 2. **Base fit**: the fixed-point core twin ([`pbm::Twin`], ≈ 1 ms per 60 s release) with six
 //!    base parameters free inside the locomotive's manufacturing tolerance (SPEC §5): Cf, V0, F0,
 //!    K, friction (Fc and Fs together) each × (1 ± 5.5 %), supply ± 0.035 bar. Bounding the base
@@ -2106,8 +2106,9 @@ pub enum NoiseColour {
     /// tell); residuals are judged against the latter.
     White,
     /// Correlated in time (or quantised coarsely), and like a transducer's noise: steady along
-    /// the release (its thirds within [`STEADY_NOISE_RATIO`] of each other), not swinging
-    /// ([`OSCILLATION_ACF`]) and no larger than [`NOISY_SIGMA_BAR`].
+    /// the release (its thirds within [`STEADY_NOISE_RATIO`] of each other), the same on every
+    /// release ([`RELEASE_NOISE_RATIO`]), not swinging ([`OSCILLATION_ACF`]) and no larger than
+    /// [`NOISY_SIGMA_BAR`].
     /// Residuals are judged against the noise under a second: from sample to sample a ninth
     /// independent tester's transducer noise of σ 0.01 bar and τ 0.1 s read 0.0018 bar, and
     /// healthy brakes were `unexplained` at 5.3×.
@@ -2119,11 +2120,11 @@ pub enum NoiseColour {
     TooLarge,
     /// Such deviations, uneven along the release (thirds more than [`STEADY_NOISE_RATIO`]
     /// apart) or from release to release (one release's σ more than [`RELEASE_NOISE_RATIO`]
-    /// times another's):
-    /// events or a vibration on some releases rather than a transducer's noise, which is the
-    /// same on every one; judged as [`Self::TooLarge`]. An eleventh independent tester's narrow-band
-    /// 7–10 Hz vibration of 0.02–0.03 bar on half of the releases was `none` when taken for
-    /// noise (5 sets; `unexplained` at 1.5–2.3× against the white noise).
+    /// times another's): events or a vibration on some releases rather than a transducer's
+    /// noise, which is the same on every one; judged as [`Self::TooLarge`]. An eleventh
+    /// independent tester's narrow-band 7–10 Hz vibration of 0.02–0.03 bar on some of the
+    /// releases was `none` when taken for noise (5 sets; `unexplained` at 1.5–2.3× against the
+    /// white noise).
     Unsteady,
     /// Such deviations that oscillate (their autocorrelation falls below
     /// [`OSCILLATION_ACF`]): releases that swing out of step with each other (a regulator
