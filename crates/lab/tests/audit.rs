@@ -752,8 +752,9 @@ fn correlated_noise_is_the_noise_and_releases_swinging_out_of_step_are_not() {
     use std::cell::{Cell, RefCell};
     let rng = RefCell::new(rand_chacha::ChaCha8Rng::seed_from_u64(3901));
     let r = (-pbm::twin::SAMPLE_PERIOD_S / 0.1f64).exp();
-    let coloured = |p: &[f64]| {
-        let w = pbm_lab::generate::transducer_noise(p.len(), 0.03, &mut *rng.borrow_mut());
+    // `p` with AR(1) noise of σ `sigma` and τ 0.1 s added.
+    let with_ar_noise = |p: &[f64], sigma: f64| -> Vec<f64> {
+        let w = pbm_lab::generate::transducer_noise(p.len(), sigma, &mut *rng.borrow_mut());
         let mut x = 0.0;
         p.iter()
             .zip(w)
@@ -763,6 +764,7 @@ fn correlated_noise_is_the_noise_and_releases_swinging_out_of_step_are_not() {
             })
             .collect()
     };
+    let coloured = |p: &[f64]| with_ar_noise(p, 0.03);
     let data = plant_set_read(4, 3902, |_| pbm::TwinParams::nominal(), coloured);
     let out = audit(&data, AuditOptions::default()).expect("audit runs");
     let text = out.verdict_text();
@@ -795,23 +797,13 @@ fn correlated_noise_is_the_noise_and_releases_swinging_out_of_step_are_not() {
     assert!(text.contains("not taken for the transducer's noise"), "{text}");
 
     // A 10 Hz vibration of 0.025 bar on two releases of four, each in its own phase, under
-    // correlated noise of σ 0.012
-    // bar: a transducer's noise is the same on every release (an eleventh independent tester's
+    // correlated noise of σ 0.012 bar: a transducer's noise is the same on every release (an eleventh independent tester's
     // vibration on some releases only was `none` when taken for noise).
     let release = Cell::new(0usize);
     let vibrating = |p: &[f64]| {
         let k = release.get();
         release.set(k + 1);
-        let w = pbm_lab::generate::transducer_noise(p.len(), 0.012, &mut *rng.borrow_mut());
-        let mut x = 0.0;
-        let with_noise: Vec<f64> = p
-            .iter()
-            .zip(w)
-            .map(|(p, w)| {
-                x = r * x + (1.0 - r * r).sqrt() * w;
-                p + x
-            })
-            .collect();
+        let with_noise = with_ar_noise(p, 0.012);
         if k % 2 == 0 {
             return with_noise;
         }
